@@ -1,0 +1,5 @@
+"""Built-in plugins of the swimmer project (import name ``cosim_plugins``).
+
+Each subpackage is one pluggy plugin, registered by :mod:`cosim.plugins`
+exactly like an external plugin.
+"""

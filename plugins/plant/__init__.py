@@ -1,0 +1,12 @@
+"""Plant plugin: the six-coil manipulator + swimmer + tank FMU as component ``plant.fmu``."""
+
+from cosim import hookimpl
+
+from cosim_plugins.plant.fmu_component import FmuPlant
+
+__all__ = ["FmuPlant"]
+
+
+@hookimpl
+def cosim_register_components(register):
+    register("plant.fmu", FmuPlant)

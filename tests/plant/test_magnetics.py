@@ -1,0 +1,134 @@
+"""Coil field, its gradient and the RLC drive."""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import zipfile
+
+import numpy as np
+import pytest
+from scipy.special import ellipe, ellipk
+
+
+@pytest.fixture(scope="module")
+def coil_fields(plant_fmu, tmp_path_factory):
+    """The FMU's own coil-field routine (test hook exported by the binary)."""
+    d = tmp_path_factory.mktemp("so")
+    with zipfile.ZipFile(plant_fmu) as zf:
+        name = next(n for n in zf.namelist() if n.startswith("binaries/"))
+        zf.extract(name, d)
+    lib = ctypes.CDLL(str(d / name))
+    fn = lib.swimmer_plant_coil_fields
+    dbl = ctypes.c_double
+    fn.argtypes = [dbl] * 5 + [ctypes.POINTER(dbl)] * 3
+    fn.restype = None
+
+    def call(p):
+        P, G, J = (dbl * 3)(*p), (dbl * 18)(), (dbl * 54)()
+        fn(795.0, 0.180, 0.215, 0.040, 0.150, P, G, J)
+        return np.array(G).reshape(6, 3), np.array(J).reshape(6, 3, 3)
+
+    return call
+
+
+def reference_coil_field(p, coil, n=12):
+    """Field per ampere [T/A] of coil 0..5 at p, fine Gauss quadrature (scipy)."""
+    k, sign = coil // 2, (1 if coil % 2 == 0 else -1)
+    e = np.eye(3)[k]
+    d = np.asarray(p, float) - sign * 0.150 * e
+    zl = d @ e
+    perp = d - zl * e
+    rho = np.linalg.norm(perp)
+    x, w = np.polynomial.legendre.leggauss(n)
+    B = np.zeros(3)
+    for xi, wi in zip(x, w):
+        a = 0.1975 + 0.0175 * xi
+        for xj, wj in zip(x, w):
+            z = zl - 0.020 * xj
+            s = a * a + rho * rho + z * z
+            al2, be2 = s - 2 * a * rho, s + 2 * a * rho
+            m = 4 * a * rho / be2
+            K, E = ellipk(m), ellipe(m)
+            c = 4e-7 * 795 * wi * wj / 4           # mu0/pi * turns * weight
+            bz = c / (2 * al2 * math.sqrt(be2)) * ((a * a - rho * rho - z * z) * E + al2 * K)
+            B += bz * e
+            if rho > 0:
+                br = c * z / (2 * al2 * math.sqrt(be2) * rho) * (s * E - al2 * K)
+                B += br * perp / rho
+    return B
+
+
+def test_centre_field_per_ampere_of_a_pair(sim, helpers):
+    """Pair at resonance, actuation lag off: B_x / I at the centre vs the analytic loop
+    formula at the mean radius (0.5 %) and the exact thick-winding integral (0.05 %)."""
+    f0 = 1 / (2 * math.pi * math.sqrt(helpers.L_COIL * helpers.C_COIL))
+    T = 0.02
+    phase = -2 * math.pi * f0 * T        # current peaks at the end of the step
+    drive = {
+        "coil_voltage_amp": np.array([10.0, 10.0, 0, 0, 0, 0]),
+        "coil_voltage_phase": np.full(6, phase),
+        "drive_freq": np.array(f0),
+    }
+    r = sim.run({"actuation_lag_on": False}, drive, T=T)
+    amp = r["coil_current_amp"][-1]
+    assert amp[0] == pytest.approx(10.0 / helpers.R_COIL, rel=1e-9)
+    per_amp = r["field"][-1][0] / amp[0]
+    a, z = 0.5 * (helpers.R_IN + helpers.R_OUT), helpers.HALF
+    loop = 2 * helpers.MU0 * helpers.TURNS * a * a / (2 * (a * a + z * z) ** 1.5)
+    assert per_amp == pytest.approx(loop, rel=5e-3)
+    assert per_amp == pytest.approx(helpers.PAIR_FIELD_PER_AMP, rel=5e-4)
+    assert per_amp == pytest.approx(2.556e-3, rel=1e-3)
+
+
+@pytest.mark.parametrize("p", [(0, 0, 0), (0.075, 0.075, 0.075), (-0.075, 0.07, -0.02), (0.0, 0.0, -0.075)])
+def test_field_within_one_percent_inside_tank(coil_fields, p):
+    G, _ = coil_fields(p)
+    for i in range(6):
+        ref = reference_coil_field(p, i)
+        assert np.linalg.norm(G[i] - ref) <= 1e-3 * np.linalg.norm(ref)   # 0.1 % (spec: 1 %)
+
+
+@pytest.mark.parametrize("p", [(0.0, 0.0, 0.0), (0.03, -0.05, 0.07), (1e-7, 0.02, 0.0)])
+def test_gradient_is_consistent_curl_and_divergence_free(coil_fields, p):
+    G, J = coil_fields(p)
+    h = 1e-5
+    for b in range(3):
+        dp = np.zeros(3)
+        dp[b] = h
+        fd = (coil_fields(np.add(p, dp))[0] - coil_fields(np.subtract(p, dp))[0]) / (2 * h)
+        assert np.allclose(J[:, :, b], fd, rtol=0, atol=1e-6 * np.abs(J).max())
+    assert np.allclose(J, np.swapaxes(J, 1, 2), atol=1e-12)            # curl B = 0
+    assert np.allclose(np.trace(J, axis1=1, axis2=2), 0, atol=1e-12)   # div B = 0
+
+
+def test_current_amplitude_peaks_at_rlc_resonance(sim, helpers):
+    """10 V on coil 1; after the transient the current amplitude follows |V/Z(f)|
+    (2 %) and peaks at f0 = 1/(2 pi sqrt(LC)) = 11.97 Hz."""
+    f0 = 1 / (2 * math.pi * math.sqrt(helpers.L_COIL * helpers.C_COIL))
+    freqs = np.arange(6.0, 20.01, 0.5)
+    amps = []
+    for f in freqs:
+        drive = helpers.zero_drive()
+        drive["coil_voltage_amp"] = np.array([10.0, 0, 0, 0, 0, 0])
+        drive["drive_freq"] = np.array(f)
+        r = sim.run({}, drive, T=1.0)
+        amps.append(r["coil_current_amp"][-10:, 0].mean())
+        assert amps[-1] == pytest.approx(10.0 / abs(helpers.impedance(f)), rel=0.02)
+    assert abs(freqs[int(np.argmax(amps))] - f0) <= 0.5
+    assert max(amps) == pytest.approx(10.0 / helpers.R_COIL, rel=0.02)
+
+
+def test_current_lags_by_l_over_r(sim, helpers):
+    """Step in voltage amplitude at resonance: the envelope rises as 1 - exp(-t R/2L)."""
+    f0 = 1 / (2 * math.pi * math.sqrt(helpers.L_COIL * helpers.C_COIL))
+    drive = helpers.zero_drive()
+    drive["coil_voltage_amp"] = np.array([10.0, 0, 0, 0, 0, 0])
+    drive["drive_freq"] = np.array(f0)
+    lag = sim.run({}, drive, T=0.4)
+    instant = sim.run({"actuation_lag_on": False}, drive, T=0.4)
+    tau = 2 * helpers.L_COIL / helpers.R_COIL        # envelope time constant at resonance
+    k = int(round(tau / 0.02))
+    ratio = lag["coil_current_amp"][k, 0] / instant["coil_current_amp"][k, 0]
+    assert ratio == pytest.approx(1 - math.exp(-lag["t"][k] / tau), abs=0.05)
+    assert instant["coil_current_amp"][1, 0] == pytest.approx(10 / helpers.R_COIL, rel=1e-9)
