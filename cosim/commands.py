@@ -1,0 +1,119 @@
+"""The core commands: run, validate, schema, plugins, replay, node."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from cosim.errors import UserError
+
+
+def add_commands(sub) -> None:
+    p = sub.add_parser("run", help="run a scenario (or its sweep) and record it")
+    p.add_argument("scenario", type=Path, help="scenario YAML file")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario field by dotted path, e.g. components.camera.params.interval_s=0.1")
+    p.add_argument("--processes", action="store_true",
+                   help="run every component as its own `cosim node` process over zenoh TCP on loopback")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("validate", help="check a scenario and print its wiring as a table")
+    p.add_argument("scenario", type=Path)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
+    p.set_defaults(func=cmd_schema)
+
+    p = sub.add_parser("plugins", help="list registered components, paths, models and effects")
+    p.set_defaults(func=cmd_plugins)
+
+    p = sub.add_parser("replay", help="open a run's recording in the rerun viewer")
+    p.add_argument("run_dir", type=Path, help="a run's output folder (or an .rrd file)")
+    p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
+    p.add_argument("component", help="component name in the scenario")
+    p.add_argument("scenario", type=Path)
+    p.add_argument("--run-id", required=True)
+    p.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
+                   help="zenoh endpoint of the scheduler, e.g. tcp/127.0.0.1:7447")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.set_defaults(func=cmd_node)
+
+
+def cmd_run(args) -> int:
+    from cosim.runner import RunRequest, run
+    from cosim.scenario import load_scenario
+
+    out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
+    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet))
+    if "sweep" not in summary:
+        err = summary["tracking_error_mm"]
+        if err:
+            print(f"tracking error: {err['mean']:.2f} ± {err['std']:.2f} mm (max {err['max']:.2f} mm)")
+        print(f"{summary['steps']} steps, {summary['sim_time_s']:.1f} s simulated in "
+              f"{summary['wall_time_s']:.1f} s ({summary['realtime_factor']:.0f}x real time)")
+    print(f"recording: {out / 'recording.rrd' if 'sweep' not in summary else out / 'runs'}")
+    print(f"summary:   {out / 'summary.json'}")
+    return 0
+
+
+def cmd_validate(args) -> int:
+    from cosim.scenario import load_scenario
+    from cosim.wiring import build_wiring, connection_table
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    print(connection_table(scenario, build_wiring(scenario)))
+    if scenario.sweep:
+        from cosim.scenario import sweep_overrides
+
+        print(f"sweep: {len(sweep_overrides(scenario))} runs over {', '.join(scenario.sweep)}")
+    return 0
+
+
+def cmd_schema(args) -> int:
+    from cosim.scenario import json_schema
+
+    print(json.dumps(json_schema(), indent=2))
+    return 0
+
+
+def cmd_plugins(args) -> int:
+    from cosim.plugins import KINDS, registry
+
+    for kind in KINDS:
+        entries = registry(kind)
+        print(f"{kind}s:")
+        for name, obj in sorted(entries.items()):
+            doc = (getattr(obj, "__doc__", None) or "").strip().splitlines()
+            print(f"  {name:24s} {doc[0] if doc else ''}")
+    return 0
+
+
+def cmd_replay(args) -> int:
+    rrd = args.run_dir / "recording.rrd" if args.run_dir.is_dir() else args.run_dir
+    if not rrd.is_file():
+        raise UserError(f"no recording at {rrd}")
+    viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    if not Path(viewer).exists():
+        raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
+    print(f"opening {rrd} in the rerun viewer")
+    return subprocess.call([viewer, str(rrd)])
+
+
+def cmd_node(args) -> int:
+    from cosim.node import serve
+    from cosim.scenario import load_scenario
+    from cosim.wiring import build_wiring
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    if args.component not in scenario.components:
+        raise UserError(f"no component {args.component!r} in {args.scenario} "
+                        f"(have: {', '.join(scenario.components)})")
+    return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect)

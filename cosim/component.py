@@ -1,0 +1,86 @@
+"""The component contract: what the scheduler steps.
+
+A component declares its input and output ports, is set up once with its
+scenario parameters and a private seeded random generator, is stepped at
+``t`` with the latest values of its inputs, and is closed at the end.
+A component never sleeps, never reads the clock and never draws from a
+global RNG, so a run is reproducible from its scenario and seed.
+"""
+
+from __future__ import annotations
+
+from cosim.errors import UserError
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+
+class ComponentError(UserError):
+    """A component rejected its parameters or failed while stepping."""
+
+
+@dataclass(frozen=True)
+class Port:
+    """One named array signal.
+
+    ``shape`` is the array shape (``()`` for a scalar, ``(3,)`` for a vector);
+    ``unit`` is an SI unit string (``"m"``, ``"rad/s"``, ``"T"``, ``"A"``,
+    ``"V"``, ``"1"`` for dimensionless).
+    """
+
+    name: str
+    shape: tuple[int, ...]
+    unit: str
+    doc: str = ""
+
+    def zeros(self) -> np.ndarray:
+        return np.zeros(self.shape)
+
+
+class Component:
+    """Base class for components; subclasses override what they need.
+
+    Class attributes:
+        inputs, outputs: tuples of :class:`Port`. A component whose ports
+            depend on its parameters sets them on the instance in ``setup``.
+        period: default update period in multiples of the scenario's ``dt``
+            (a scenario may override it); between updates the outputs hold.
+    """
+
+    inputs: tuple[Port, ...] = ()
+    outputs: tuple[Port, ...] = ()
+    period: int = 1
+
+    #: Set True to receive the scenario's path object as ``params["path"]``.
+    uses_path: bool = False
+
+    def setup(self, params: Mapping[str, Any], rng: np.random.Generator) -> None:
+        """Validate ``params`` (raise :class:`ComponentError` naming the bad one) and initialise.
+
+        ``params`` holds the scenario's parameters for this component plus
+        ``dt`` (the scenario step [s]) and, when ``uses_path`` is set,
+        ``path`` (a :class:`cosim.paths.Path`). ``rng`` is private to the
+        component and seeded from the scenario seed and the component name.
+        """
+
+    def initial_outputs(self) -> dict[str, np.ndarray]:
+        """Outputs before the first step (used by delayed edges at t = 0). Default: zeros."""
+        return {p.name: p.zeros() for p in self.outputs}
+
+    def step(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Bring the component to time ``t`` [s] and return its outputs at ``t``.
+
+        ``inputs`` holds the latest value of every input port. Over a delayed
+        edge (``delay: 1``, e.g. the plant's coil commands) that is the value
+        produced one tick earlier, i.e. the input applied over ``[t - dt, t)``;
+        a plant therefore integrates from its previous time to ``t`` with it.
+        At the first tick (``t == 0``) a plant integrates nothing.
+        """
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release resources (files, FMU instances). Called once, also after a failure."""
+
+    # Optional: snapshot()/restore(state) for components that support rewinding.

@@ -1,0 +1,11 @@
+"""Error types shared across the framework.
+
+:class:`UserError` marks a problem with the user's input (a scenario, a log
+file, a plugin, a parameter): the CLI prints its message as one line and
+exits with status 2 instead of showing a traceback. Messages name the file,
+field or component and say what is wrong.
+"""
+
+
+class UserError(Exception):
+    """Bad input from the user; the message says what and where."""

@@ -1,0 +1,89 @@
+"""Port values received from the bus, keyed by (component, port) and tick stamp.
+
+:class:`PortStore` keeps, per port, its few most recent values so a
+consumer over a delayed edge can read the previous tick's value even after
+the producer published a newer one. :class:`PortCache` fills a store from
+zenoh FIFO channels (no Python callback thread: a local put lands in the
+channel before ``put`` returns) and waits, polling, for a stamp that has not
+arrived yet. Nodes fill a plain store from their event queue instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import zenoh
+
+from cosim import bus
+
+_KEEP = 3
+
+
+class PortTimeout(RuntimeError):
+    def __init__(self, component: str, port: str, stamp: int):
+        super().__init__(f"no value of {component}.{port} for tick {stamp}")
+        self.component, self.port, self.stamp = component, port, stamp
+
+
+class PortStore:
+    def __init__(self, ports: list[tuple[str, str]]):
+        self._values: dict[tuple[str, str], dict[int, np.ndarray]] = {p: {} for p in ports}
+
+    def store(self, key: tuple[str, str], tick: int, value: np.ndarray) -> None:
+        values = self._values[key]
+        values[tick] = value
+        if len(values) > _KEEP:
+            del values[min(values)]
+
+    def has(self, comp: str, port: str, stamp: int) -> bool:
+        return stamp in self._values[(comp, port)]
+
+    def get(self, comp: str, port: str, stamp: int, timeout_s: float) -> np.ndarray:
+        """The value of ``comp.port`` produced at tick ``stamp`` (a plain store does not wait)."""
+        try:
+            return self._values[(comp, port)][stamp]
+        except KeyError:
+            raise PortTimeout(comp, port, stamp) from None
+
+
+class PortCache(PortStore):
+    """A store subscribed to the given ports of ``run_id`` through FIFO channels."""
+
+    def __init__(self, session: zenoh.Session, run_id: str, ports: list[tuple[str, str]]):
+        super().__init__(ports)
+        self._subs = {p: session.declare_subscriber(bus.port_key(run_id, *p)) for p in ports}
+
+    def _drain(self, key: tuple[str, str]) -> None:
+        sub = self._subs[key]
+        while (sample := sub.try_recv()) is not None:
+            self.store(key, *bus.decode_array(sample.payload.to_bytes(), sample.attachment.to_bytes()))
+
+    def has(self, comp: str, port: str, stamp: int) -> bool:
+        self._drain((comp, port))
+        return super().has(comp, port, stamp)
+
+    def get(self, comp: str, port: str, stamp: int, timeout_s: float) -> np.ndarray:
+        """Waits up to ``timeout_s`` for the value (see :func:`cosim.bus.poll`)."""
+        values = self._values[(comp, port)]
+        if stamp not in values:
+
+            def fetch():
+                self._drain((comp, port))
+                return values.get(stamp)
+
+            if bus.poll(fetch, timeout_s) is None:
+                raise PortTimeout(comp, port, stamp)
+        return values[stamp]
+
+    def close(self) -> None:
+        for sub in self._subs.values():
+            sub.undeclare()
+        self._subs = {}
+
+
+def expected_stamp(tick: int, period: int, delay: int) -> int:
+    """Tick at which a producer with ``period`` last updated, as seen over an edge with ``delay``.
+
+    -1 means its initial outputs.
+    """
+    k = tick - delay
+    return -1 if k < 0 else (k // period) * period

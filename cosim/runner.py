@@ -1,0 +1,230 @@
+"""Run a scenario (or its sweep) end to end and write its outputs.
+
+One run writes into its output folder: ``summary.json``, ``log.csv``,
+``trace.npz`` and ``recording.rrd`` (see :mod:`cosim.recorder`). A sweep
+writes one such folder per combination under ``runs/`` plus a
+``summary.json`` with a ``"sweep"`` list and a ``summary.md`` table.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim import bus
+from cosim.paths import make_path
+from cosim.portcache import PortCache
+from cosim.recorder import TraceRecorder
+from cosim.scenario import Scenario, load_scenario, sweep_overrides
+from cosim.scheduler import LocalGroup, RemoteGroup, RunError, Scheduler
+from cosim.stepper import Stepper, setup_component
+from cosim.wiring import build_wiring
+
+
+NODE_START_TIMEOUT_S = 120.0
+
+
+@dataclass
+class RunRequest:
+    """What to run: a scenario file, its overrides, where, and how."""
+
+    scenario_file: Path
+    out_dir: Path
+    overrides: list[str] = field(default_factory=list)
+    processes: bool = False
+    progress: bool = True
+
+
+def run(request: RunRequest) -> dict[str, Any]:
+    """Run the scenario, or every combination of its sweep; returns the summary written."""
+    scenario = load_scenario(request.scenario_file, request.overrides)
+    if not scenario.sweep:
+        return run_one(scenario, request)
+    combos = sweep_overrides(scenario)
+    rows = []
+    for i, (labels, extra) in enumerate(combos):
+        tag = "_".join(f"{k}={v}" for k, v in labels.items())
+        sub_dir = request.out_dir / "runs" / f"{i:03d}_{_safe(tag)}"
+        print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
+        sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
+                         request.processes, request.progress)
+        summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
+        rows.append({**labels, "tracking_error_mm": summary["tracking_error_mm"],
+                     "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
+    summary = {"scenario": scenario.name, "sweep": rows}
+    _write_json(request.out_dir / "summary.json", summary)
+    (request.out_dir / "summary.md").write_text(sweep_table(rows))
+    print(sweep_table(rows))
+    return summary
+
+
+def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
+    """Run one scenario (no sweep) into ``request.out_dir``; returns and writes ``summary.json``.
+
+    A component failure still writes the outputs recorded so far and the
+    summary (with ``status: "failed"``), then raises :class:`RunError`.
+    """
+    out = Path(request.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    wiring = build_wiring(scenario)
+    path = make_path(scenario.path.plugin, scenario.path.params) if scenario.path else None
+    run_id = secrets.token_hex(4)
+    recorder = TraceRecorder(scenario, wiring, out, path)
+    ports = [(c, p.name) for c in wiring.order for p in wiring.outputs[c]]
+    endpoint = f"tcp/127.0.0.1:{_free_port()}" if request.processes else None
+    session = bus.open_session(listen=[endpoint], mode="router") if endpoint else bus.open_session()
+    cache = PortCache(session, run_id, ports)
+    procs: list[subprocess.Popen] = []
+    group = scheduler = error = None
+    completed = 0
+    wall0 = time.perf_counter()
+    try:
+        if endpoint:
+            group = RemoteGroup(session, run_id, wiring.order)
+            _start_nodes(scenario, wiring, group, run_id, endpoint, request, procs)
+        else:
+            steppers = {}
+            group = LocalGroup(steppers)
+            for name in wiring.order:
+                timeout = scenario.components[name].timeout_s or scenario.timeout_s
+                steppers[name] = Stepper(name, setup_component(scenario, wiring, name), session, run_id,
+                                         wiring, cache, timeout)
+        scheduler = Scheduler(scenario, wiring, group, cache, [recorder])
+        with _progress_bar(scenario.n_steps, request.progress) as bar:
+            try:
+                completed = scheduler.run(on_progress=bar)
+            except RunError as exc:
+                error, completed = exc, recorder.ticks
+    finally:
+        if group is not None:
+            group.close(hung=error.component if error else None)
+        for proc in procs:
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        cache.close()
+        session.close()
+    total_wall = time.perf_counter() - wall0
+    summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s, total_wall, error)
+    _write_json(out / "summary.json", summary)
+    if error:
+        raise RunError(error.component, f"{str(error).split(': ', 1)[-1]} (recorded so far: {out})")
+    return summary
+
+
+def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s: float,
+             total_wall_s: float, error: RunError | None) -> dict[str, Any]:
+    """``wall_time_s`` and ``realtime_factor`` cover the stepping loop; ``total_wall_time_s``
+    adds set-up (processes, FMU instantiation) and writing the outputs."""
+    err = recorder.tracking_error_m
+    stats = None
+    if err is not None and len(err):
+        mm = err * 1e3
+        stats = {"mean": float(np.mean(mm)), "std": float(np.std(mm)), "max": float(np.max(mm))}
+    sim = completed * scenario.dt_s
+    return {
+        "scenario": scenario.name,
+        "status": "failed" if error else "ok",
+        "error": str(error) if error else None,
+        "tracking_error_mm": stats,
+        "steps": completed,
+        "sim_time_s": sim,
+        "wall_time_s": wall_s,
+        "realtime_factor": sim / wall_s if wall_s > 0 else None,
+        "total_wall_time_s": total_wall_s,
+        "files": {k: v.name for k, v in recorder.files.items()},
+    }
+
+
+def sweep_table(rows: list[dict]) -> str:
+    """Markdown table of a sweep: the labels, then tracking error mean +- std and max [mm]."""
+    if not rows:
+        return ""
+    label_keys = [k for k in rows[0] if k not in ("tracking_error_mm", "status", "dir")]
+    head = "| " + " | ".join([*label_keys, "tracking error [mm]", "max [mm]", "status"]) + " |"
+    lines = [head, "|" + "---|" * (len(label_keys) + 3)]
+    for r in rows:
+        e = r["tracking_error_mm"] or {}
+        stat = f"{e['mean']:.2f} ± {e['std']:.2f}" if e else "-"
+        mx = f"{e['max']:.2f}" if e else "-"
+        lines.append("| " + " | ".join([*(str(r[k]) for k in label_keys), stat, mx, r["status"]]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------- processes
+
+
+def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: str, request,
+                 started: list) -> None:
+    """Start one ``cosim node`` process per component (appended to ``started``); wait until each is ready."""
+    procs = {}
+    for name in wiring.order:
+        cmd = [sys.executable, "-m", "cosim.cli", "node", name, str(request.scenario_file),
+               "--run-id", run_id, "--connect", endpoint]
+        for item in request.overrides:
+            cmd += ["--set", item]
+        procs[name] = subprocess.Popen(cmd, stdin=subprocess.DEVNULL)
+        started.append(procs[name])
+    pending = set(procs)
+    deadline = time.monotonic() + NODE_START_TIMEOUT_S
+    while pending:
+        reply = group.poll_reply(0.05)
+        if reply is not None:
+            if not reply.get("ok", False):
+                raise RunError(reply.get("name", "?"), reply.get("error", "failed to start"))
+            if reply.get("phase") == "ready":
+                pending.discard(reply["name"])
+            continue
+        for name in sorted(pending):
+            if procs[name].poll() is not None:
+                raise RunError(name, f"its node process exited with status {procs[name].returncode} "
+                                     "before it was ready")
+        if time.monotonic() > deadline:
+            raise RunError(sorted(pending)[0], f"its node was not ready within {NODE_START_TIMEOUT_S:g} s")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class _progress_bar:
+    """tqdm over ticks, shown only when a run lasts more than a couple of seconds."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.total, self.enabled, self.bar = total, enabled, None
+
+    def __enter__(self):
+        if self.enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total, unit="step", delay=2.0, file=sys.stderr, leave=False)
+        return self
+
+    def __call__(self, done: int) -> None:
+        if self.bar is not None:
+            self.bar.update(done - self.bar.n)
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _safe(text: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "=._-" else "_" for ch in text)[:80]
+
+
+def _write_json(path: Path, obj) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(obj, indent=2) + "\n")

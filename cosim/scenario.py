@@ -1,0 +1,257 @@
+"""YAML scenario -> validated :class:`Scenario` (pydantic, unknown fields rejected).
+
+A scenario picks the components (plugin, params, input wiring), the path,
+the duration, the step and the seed, and optionally a sweep. Errors name the
+field and the YAML line. Overrides (``--set a.b.c=value``) and sweep axes use
+the same dotted paths into the YAML document.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from cosim.bus import RESERVED_NAMES
+from cosim.errors import UserError
+
+
+class ScenarioError(UserError):
+    """A scenario file or override is invalid; the message names the field and line."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+
+class InputSpec(_Strict):
+    """One input wire: ``from: component.port``; ``delay: 1`` breaks a cycle (value of the previous tick)."""
+
+    source: str = Field(alias="from", pattern=r"^[A-Za-z_][\w-]*\.[A-Za-z_]\w*$")
+    delay: int = Field(0, ge=0, le=1)
+
+    @property
+    def component(self) -> str:
+        return self.source.split(".", 1)[0]
+
+    @property
+    def port(self) -> str:
+        return self.source.split(".", 1)[1]
+
+
+class ComponentSpec(_Strict):
+    plugin: str = Field(description="registered component name, see `cosim plugins`")
+    params: dict[str, Any] = Field(default_factory=dict)
+    inputs: dict[str, InputSpec] = Field(default_factory=dict)
+    period: int = Field(1, ge=1, description="update period in multiples of dt_s")
+    timeout_s: float | None = Field(None, gt=0, description="per-step timeout; default: the scenario's")
+
+    @field_validator("inputs", mode="before")
+    @classmethod
+    def _shorthand(cls, value):
+        if isinstance(value, dict):
+            return {k: ({"from": v} if isinstance(v, str) else v) for k, v in value.items()}
+        return value
+
+
+class PathSpec(_Strict):
+    plugin: str
+    params: dict[str, Any] = Field(default_factory=dict)
+
+
+class RecordSpec(_Strict):
+    """Which ports play which role in the log, the summary and the 3D view.
+
+    ``omega`` and ``measured`` make the raw log (``log.csv``); ``truth`` is
+    the tracking-error reference. Optional roles may be null.
+    """
+
+    omega: str = "controller.omega"
+    measured: str = "camera.position"
+    truth: str = "plant.position"
+    estimate: str | None = "estimator.position"
+    axis: str | None = "plant.axis"
+    field: str | None = "plant.field"
+    coil_current: str | None = "plant.coil_current_amp"
+
+
+class Scenario(_Strict):
+    name: str
+    description: str = ""
+    duration_s: float = Field(gt=0)
+    dt_s: float = Field(0.02, gt=0, le=1.0)
+    seed: int = 0
+    plugins: list[str] = Field(default_factory=list,
+                               description="Python plugin files to load, relative to the scenario file")
+    timeout_s: float = Field(30.0, gt=0, description="default per-step timeout of every component")
+    path: PathSpec | None = None
+    components: dict[str, ComponentSpec]
+    record: RecordSpec = Field(default_factory=RecordSpec)
+    sweep: dict[str, list[Any]] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _check_wiring(self):
+        for name, comp in self.components.items():
+            if name in RESERVED_NAMES or not name.replace("_", "a").replace("-", "a").isalnum():
+                raise ValueError(f"component name {name!r} is reserved or not a plain word")
+            for port, wire in comp.inputs.items():
+                if wire.component not in self.components:
+                    raise ValueError(
+                        f"components.{name}.inputs.{port}: source component {wire.component!r} "
+                        f"is not in the scenario (have: {', '.join(self.components)})"
+                    )
+        for axis, values in self.sweep.items():
+            if not values:
+                raise ValueError(f"sweep.{axis}: needs at least one value")
+        return self
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.duration_s / self.dt_s))
+
+
+# ---------------------------------------------------------------- loading
+
+
+def load_document(path: str | Path) -> tuple[dict, yaml.Node | None]:
+    """Read a YAML file as ``(data, node tree)``; syntax errors name the line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"scenario file {path} does not exist")
+    text = path.read_text()
+    try:
+        node = yaml.compose(text)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark else ""
+        raise ScenarioError(f"{path}{where}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{path}: a scenario is a YAML mapping, got {type(data).__name__}")
+    return data, node
+
+
+def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
+    """Load, apply ``key=value`` overrides, validate. Errors name field and line."""
+    data, node = load_document(path)
+    for item in overrides:
+        key, value = parse_override(item)
+        set_dotted(data, key, value)
+    scenario = validate(data, source=str(path), node=node)
+    load_scenario_plugins(scenario, Path(path).parent)
+    return scenario
+
+
+def load_scenario_plugins(scenario: Scenario, base_dir: Path) -> None:
+    """Register the scenario's own plugin files (paths relative to ``base_dir``)."""
+    from cosim.plugins import load_plugin_file
+
+    for item in scenario.plugins:
+        file = Path(item) if Path(item).is_absolute() else base_dir / item
+        load_plugin_file(file)
+
+
+def validate(data: dict, source: str = "<scenario>", node: yaml.Node | None = None) -> Scenario:
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        lines = []
+        for err in exc.errors():
+            loc = [str(p) for p in err["loc"]]
+            field = ".".join(loc) or "(top level)"
+            line = _line_of(node, err["loc"])
+            where = f" (line {line})" if line else ""
+            msg = err["msg"]
+            if err["type"] == "extra_forbidden":
+                msg = "unknown field"
+            lines.append(f"  {field}{where}: {msg}")
+        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(lines)) from None
+
+
+def _line_of(node: yaml.Node | None, loc) -> int | None:
+    """1-based line of the deepest YAML node on the path ``loc``."""
+    line = None
+    for key in loc:
+        if isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                if k.value == str(key):
+                    line = k.start_mark.line + 1
+                    node = v
+                    break
+            else:
+                return line
+        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+            node = node.value[key]
+            line = node.start_mark.line + 1
+        else:
+            return line
+    return line
+
+
+# ---------------------------------------------------------------- overrides and sweeps
+
+
+def parse_override(item: str) -> tuple[str, Any]:
+    if "=" not in item:
+        raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.camera.params.interval_s=0.1")
+    key, raw = item.split("=", 1)
+    try:
+        value = yaml.safe_load(raw) if raw else None
+    except yaml.YAMLError:
+        value = raw
+    return key.strip(), value
+
+
+def set_dotted(data: dict, key: str, value: Any) -> None:
+    """Set ``data[a][b][c] = value`` for ``key = 'a.b.c'``, creating mappings as needed."""
+    parts = key.split(".")
+    cur = data
+    for i, part in enumerate(parts[:-1]):
+        nxt = cur.get(part) if isinstance(cur, dict) else None
+        if nxt is None:
+            nxt = cur[part] = {}
+        if not isinstance(nxt, dict):
+            raise ScenarioError(f"cannot set {key!r}: {'.'.join(parts[: i + 1])} is not a mapping")
+        cur = nxt
+    cur[parts[-1]] = value
+
+
+def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]]:
+    """One ``(labels, overrides)`` per combination of the sweep axes (product order).
+
+    An axis named by a dotted path (``components.camera.params.interval_s``)
+    sets that field; its label is the last part (``interval_s``). An axis with
+    a plain name (``estimator``) lists mappings of dotted paths to values,
+    each with an optional ``label``; its label is that (or the first value).
+    Overrides are ``key=value`` strings as ``--set`` takes them.
+    """
+    axes = list(scenario.sweep.items())
+    out = []
+    for combo in itertools.product(*[values for _, values in axes]):
+        labels: dict[str, Any] = {}
+        overrides: list[str] = []
+        for axis, value in zip(axes, combo):
+            axis = axis[0]
+            if "." in axis:
+                overrides.append(f"{axis}={json.dumps(value)}")
+                labels[axis.rsplit(".", 1)[-1]] = value
+                continue
+            if not isinstance(value, dict):
+                raise ScenarioError(f"sweep.{axis}: each value must be a mapping of dotted keys to values")
+            value = dict(value)
+            label = value.pop("label", None)
+            for k, v in value.items():
+                overrides.append(f"{k}={json.dumps(v)}")
+                label = v if label is None else label
+            labels[axis] = label
+        out.append((labels, overrides))
+    return out
+
+
+def json_schema() -> dict:
+    """JSON Schema of the scenario format (for editors)."""
+    return Scenario.model_json_schema(by_alias=True)

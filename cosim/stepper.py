@@ -1,0 +1,82 @@
+"""Steps one component on the bus: gather its inputs for a tick, step, publish.
+
+Used alike by the scheduler for components in its own process and by
+``cosim node`` for a component in a process of its own, so both paths read
+and write exactly the same bytes.
+"""
+
+from __future__ import annotations
+
+import zlib
+from typing import Any
+
+import numpy as np
+import zenoh
+
+from cosim import bus
+from cosim.component import Component, ComponentError
+from cosim.paths import make_path
+from cosim.portcache import PortCache, expected_stamp
+from cosim.scenario import Scenario
+from cosim.wiring import Wiring
+
+
+def component_rng(seed: int, name: str) -> np.random.Generator:
+    """A generator private to one component, the same in every process layout."""
+    return np.random.default_rng([seed, zlib.crc32(name.encode())])
+
+
+def setup_component(scenario: Scenario, wiring: Wiring, name: str) -> Component:
+    """Instantiate and set up component ``name`` with its params, ``dt`` and (if asked) the path."""
+    spec = scenario.components[name]
+    component = wiring.classes[name]()
+    params: dict[str, Any] = {"dt": scenario.dt_s, **spec.params}
+    if getattr(component, "uses_path", False):
+        if scenario.path is None:
+            raise ComponentError(f"component {name!r} ({spec.plugin}) needs a path; the scenario has none")
+        params["path"] = make_path(scenario.path.plugin, scenario.path.params)
+    try:
+        component.setup(params, component_rng(scenario.seed, name))
+    except ComponentError as exc:
+        raise ComponentError(f"components.{name} ({spec.plugin}): {exc}") from None
+    return component
+
+
+class Stepper:
+    """Holds one set-up component and its bus endpoints."""
+
+    def __init__(self, name: str, component: Component, session: zenoh.Session, run_id: str,
+                 wiring: Wiring, cache: PortCache, timeout_s: float):
+        self.name = name
+        self.component = component
+        self.cache = cache
+        self.timeout_s = timeout_s
+        self.period = wiring.periods[name]
+        self._inputs = [(e.dst_port, e.src, e.src_port, wiring.periods[e.src], e.delay)
+                        for e in wiring.edges_into(name)]
+        self._ports = {p.name: p.shape for p in wiring.outputs[name]}
+        self._pubs = {p: session.declare_publisher(bus.port_key(run_id, name, p), express=True) for p in self._ports}
+
+    def publish_initial(self) -> None:
+        self._publish(-1, self.component.initial_outputs())
+
+    def step(self, tick: int, t: float) -> None:
+        inputs = {dst: self.cache.get(src, port, expected_stamp(tick, period, delay), self.timeout_s)
+                  for dst, src, port, period, delay in self._inputs}
+        self._publish(tick, self.component.step(t, inputs))
+
+    def _publish(self, tick: int, outputs: dict[str, np.ndarray]) -> None:
+        if outputs is None or set(outputs) != set(self._ports):
+            got = sorted(outputs or {})
+            raise ComponentError(f"returned ports {got}, expected {sorted(self._ports)}")
+        for port, value in outputs.items():
+            value = np.asarray(value, dtype=float)
+            if value.shape != self._ports[port]:
+                raise ComponentError(f"output {port!r} has shape {value.shape}, declared {self._ports[port]}")
+            payload, attachment = bus.encode_array(value, tick)
+            self._pubs[port].put(payload, attachment=attachment)
+
+    def close(self) -> None:
+        for pub in self._pubs.values():
+            pub.undeclare()
+        self.component.close()

@@ -1,0 +1,73 @@
+"""Inverse magnetics: rotation vector omega -> coil voltage phasors.
+
+omega [rad/s] -> a field of ``field_mT`` rotating about omega at
+``|omega| / 2 pi`` Hz -> least-norm coil current phasors from the centre
+field matrix -> voltage phasors through each coil's series RLC impedance ->
+scaled down together if any exceeds the supply limit (the field keeps its
+direction and loses magnitude). A non-finite omega commands zero field.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cosim import Component, Port
+from cosim.params import Param, read_params
+from cosim_plugins.coil_driver.actuation import (
+    centre_matrix,
+    impedance_ohm,
+    loop_field_on_axis_t_per_a,
+    rotating_field_phasor,
+)
+
+PARAMS = {
+    "field_mT": Param(3.0, "rotating field amplitude at the swimmer [mT]", 0.0, 50.0),
+    "turns": Param(795.0, "turns per coil", 1.0, 1e5),
+    "r_inner_mm": Param(180.0, "coil inner radius [mm]", 1.0, 1e4),
+    "r_outer_mm": Param(215.0, "coil outer radius [mm]", 1.0, 1e4),
+    "z_near_mm": Param(150.0, "distance from the centre to the coil's inner face [mm]", 0.0, 1e4),
+    "thickness_mm": Param(40.0, "axial winding thickness [mm]", 0.0, 1e4),
+    "r_ohm": Param(12.9, "coil resistance [ohm]", 0.0, 1e4),
+    "l_h": Param(0.411, "coil inductance [H]", 0.0, 100.0),
+    "c_f": Param(430e-6, "series capacitor [F]", 1e-12, 100.0),
+    "v_max": Param(40.0, "supply limit per coil [V] (two +-20 V supplies in series)", 0.0, 1e4),
+    "f_min_hz": Param(0.05, "below this spin frequency the field is off [Hz]", 0.0, 100.0),
+}
+
+
+class InverseMagnetics(Component):
+    """omega -> rotating field -> least-norm coil currents -> RLC voltages, clipped to the supply."""
+
+    inputs = (Port("omega", (3,), "rad/s", "commanded rotation vector"),)
+    outputs = (
+        Port("coil_voltage_amp", (6,), "V", "voltage amplitude per coil"),
+        Port("coil_voltage_phase", (6,), "rad", "voltage phase per coil"),
+        Port("drive_freq", (), "Hz", "drive frequency"),
+    )
+
+    def setup(self, params, rng):
+        p = self.p = read_params(params, PARAMS)
+        if p["r_outer_mm"] <= p["r_inner_mm"]:
+            from cosim import ComponentError
+
+            raise ComponentError("r_outer_mm must exceed r_inner_mm")
+        g = loop_field_on_axis_t_per_a(p["turns"], p["r_inner_mm"] * 1e-3, p["r_outer_mm"] * 1e-3,
+                                       p["z_near_mm"] * 1e-3, (p["z_near_mm"] + p["thickness_mm"]) * 1e-3)
+        self.m_pinv = np.linalg.pinv(centre_matrix(g))  # (6, 3) A/T
+        self.zero = {"coil_voltage_amp": np.zeros(6), "coil_voltage_phase": np.zeros(6), "drive_freq": np.array(0.0)}
+
+    def initial_outputs(self):
+        return self.zero
+
+    def step(self, t, inputs):
+        omega = inputs["omega"]
+        f = np.linalg.norm(omega) / (2 * np.pi)
+        if not np.all(np.isfinite(omega)) or f < self.p["f_min_hz"] or self.p["field_mT"] == 0.0:
+            return self.zero
+        field = rotating_field_phasor(omega, self.p["field_mT"] * 1e-3)
+        current = self.m_pinv @ field  # (6,) complex A
+        volts = current * impedance_ohm(f, self.p["r_ohm"], self.p["l_h"], self.p["c_f"])
+        peak = np.abs(volts).max()
+        if peak > self.p["v_max"]:
+            volts = volts * (self.p["v_max"] / peak)
+        return {"coil_voltage_amp": np.abs(volts), "coil_voltage_phase": np.angle(volts), "drive_freq": np.array(f)}

@@ -1,0 +1,77 @@
+"""PI path following on top of pure pursuit.
+
+The desired swimming velocity points at the pure-pursuit target with the
+cruise speed (the proportional part: the target's offset steers the heading),
+plus an integral of the cross-track error that cancels slow biases such as
+sinking. The rotation vector omega [rad/s] points along the desired
+velocity (the spiral swims along +omega) with ``|omega| = 2 pi f``, where
+``f = |v_des| / speed_per_hz`` is clipped to ``[0, f_max_hz]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cosim import Component, Port
+from cosim.params import Param, read_params
+from cosim_plugins.controllers.pure_pursuit import PurePursuit
+
+PARAMS = {
+    "speed_mm_s": Param(20.0, "cruise speed [mm/s]", 0.0, 200.0),
+    "lookahead_mm": Param(9.0, "pure-pursuit look-ahead distance [mm]", 0.1, 100.0),
+    "lookahead_gain_s": Param(0.001, "look-ahead growth with speed [s]", 0.0, 10.0),
+    "kp": Param(1.0, "cross-track proportional gain [1/s]", 0.0, 100.0),
+    "ki": Param(0.5, "cross-track integral gain [1/s^2]", 0.0, 100.0),
+    "i_max_mm_s": Param(10.0, "integral term limit [mm/s]", 0.0, 200.0),
+    "speed_per_hz_mm_s": Param(2.5, "swimmer speed per Hz of spin [mm/s/Hz]", 1e-3, 100.0),
+    "f_max_hz": Param(20.0, "largest commanded spin frequency [Hz]", 0.0, 200.0),
+}
+
+
+class PIController(Component):
+    """Pure pursuit (look-ahead 9 mm) + PI on the cross-track error, 3D."""
+
+    uses_path = True
+    inputs = (
+        Port("position", (3,), "m", "estimated position (NaN: none yet)"),
+        Port("velocity", (3,), "m/s", "estimated velocity"),
+    )
+    outputs = (Port("omega", (3,), "rad/s", "commanded rotation vector of the field"),)
+
+    def setup(self, params, rng):
+        p = read_params(params, PARAMS)
+        self.dt = params["dt"]
+        self.pursuit = PurePursuit(params["path"], p["lookahead_mm"] * 1e-3, p["lookahead_gain_s"])
+        self.speed = p["speed_mm_s"] * 1e-3
+        self.kp, self.ki = p["kp"], p["ki"]
+        self.i_max = p["i_max_mm_s"] * 1e-3
+        self.m_per_hz = p["speed_per_hz_mm_s"] * 1e-3
+        self.f_max = p["f_max_hz"]
+        self.integral = np.zeros(3)
+
+    def step(self, t, inputs):
+        pos, vel = inputs["position"], inputs["velocity"]
+        if not np.all(np.isfinite(pos)):
+            return {"omega": np.zeros(3)}
+        target, closest, at_end = self.pursuit.reference(pos, vel, t)
+        to_target = target - pos
+        dist = np.linalg.norm(to_target)
+        speed = self.speed * (min(dist / self.pursuit.lookahead_m, 1.0) if at_end else 1.0)
+        cross = closest - pos
+        self.integral = _clip_norm(self.integral + self.ki * cross * self.dt, self.i_max)
+        v_des = speed * to_target / max(dist, 1e-9) + self.kp * cross + self.integral
+        return {"omega": velocity_to_omega(v_des, self.m_per_hz, self.f_max)}
+
+
+def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v if n <= limit else v * (limit / n)
+
+
+def velocity_to_omega(v_des_m_s: np.ndarray, m_per_hz: float, f_max_hz: float) -> np.ndarray:
+    """Rotation vector [rad/s] that swims at ``v_des`` (3,) [m/s]: along it, 2 pi f with f = |v| / m_per_hz."""
+    speed = np.linalg.norm(v_des_m_s)
+    if speed < 1e-12:
+        return np.zeros(3)
+    f = min(speed / m_per_hz, f_max_hz)
+    return v_des_m_s / speed * (2 * np.pi * f)

@@ -1,0 +1,59 @@
+"""A throwaway plugin for framework tests: a kinematic swimmer and faulty components.
+
+The kinematic plant swims along the field's rotation axis at a speed
+proportional to the drive frequency; it needs no FMU, so the scheduler can
+be tested quickly and on its own.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from cosim import Component, ComponentError, Port, hookimpl
+
+
+class KinematicPlant(Component):
+    """Swims along the commanded rotation axis at 2.5 mm/s per Hz (no inertia)."""
+
+    inputs = (Port("omega", (3,), "rad/s"),)
+    outputs = (Port("position", (3,), "m"),)
+
+    def setup(self, params, rng):
+        self.dt = params["dt"]
+        self.p = np.array(params.get("p0", [-0.015, -0.040, 0.0]), dtype=float)
+        self.t = 0.0
+
+    def initial_outputs(self):
+        return {"position": self.p.copy()}
+
+    def step(self, t, inputs):
+        if t > self.t:
+            w = inputs["omega"]
+            self.p = self.p + 2.5e-3 * w / (2 * np.pi) * (t - self.t)
+            self.t = t
+        return {"position": self.p.copy()}
+
+
+class Faulty(Component):
+    """Passes position through; raises or hangs at ``fail_at_s``."""
+
+    inputs = (Port("position", (3,), "m"),)
+    outputs = (Port("position", (3,), "m"),)
+
+    def setup(self, params, rng):
+        self.fail_at, self.mode = params.get("fail_at_s", 1.0), params.get("mode", "raise")
+
+    def step(self, t, inputs):
+        if t >= self.fail_at:
+            if self.mode == "raise":
+                raise ComponentError("deliberate failure")
+            time.sleep(3600)
+        return {"position": inputs["position"]}
+
+
+@hookimpl
+def cosim_register_components(register):
+    register("test.kinematic", KinematicPlant)
+    register("test.faulty", Faulty)
