@@ -5,7 +5,7 @@ The framework knows components, time, wiring and data; the physics lives in the
 (see :mod:`cosim.hookspecs`).
 """
 
-from cosim.component import Component, ComponentError, Port
+from cosim.component import Component, ComponentError, ComponentFault, Port
 from cosim.hookspecs import hookimpl
 
-__all__ = ["Component", "ComponentError", "Port", "hookimpl"]
+__all__ = ["Component", "ComponentError", "ComponentFault", "Port", "hookimpl"]

@@ -74,6 +74,13 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
     return zenoh.open(conf)
 
 
+def publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:
+    """A publisher for lockstep traffic: reliable, blocking instead of dropping under
+    congestion (zenoh's default drops), and express (sent at once, not batched)."""
+    return session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK,
+                                     reliability=zenoh.Reliability.RELIABLE, express=True)
+
+
 def port_key(run_id: str, component: str, port: str) -> str:
     return f"{ROOT}/{run_id}/{component}/{port}"
 

@@ -46,6 +46,8 @@ def add_commands(sub) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.set_defaults(func=cmd_node)
 
+    add_dataset_command(sub)
+
 
 def cmd_run(args) -> int:
     from cosim.runner import RunRequest, run
@@ -117,3 +119,24 @@ def cmd_node(args) -> int:
         raise UserError(f"no component {args.component!r} in {args.scenario} "
                         f"(have: {', '.join(scenario.components)})")
     return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect)
+
+
+def add_dataset_command(sub) -> None:
+    p = sub.add_parser("dataset", help="generate (or reuse) the paper's 12 + 1 logs and print their paths")
+    p.add_argument("--quick", action="store_true", help="40 s runs instead of 290 s each")
+    p.add_argument("--out", type=Path, default=None, help="folder (default: the cache, $COSIM_CACHE or ./cache)")
+    p.add_argument("--force", action="store_true", help="regenerate even if the cache is current")
+    p.set_defaults(func=cmd_dataset)
+
+
+def cmd_dataset(args) -> int:
+    from cosim.dataset import ensure_dataset
+
+    ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force)
+    print(f"training ({len(ds.training)} logs):")
+    for f in ds.training:
+        print(f"  {f}")
+    print("validation:")
+    for f in ds.validation:
+        print(f"  {f}")
+    return 0

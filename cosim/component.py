@@ -21,6 +21,14 @@ class ComponentError(UserError):
     """A component rejected its parameters or failed while stepping."""
 
 
+class ComponentFault(RuntimeError):
+    """A component detected an unsafe condition and asks the run to stop cleanly.
+
+    Raised by the framework, after the step's (safe) outputs went out, when a
+    component has set its ``fault`` attribute (see :class:`Component`).
+    """
+
+
 @dataclass(frozen=True)
 class Port:
     """One named array signal.
@@ -52,6 +60,10 @@ class Component:
     inputs: tuple[Port, ...] = ()
     outputs: tuple[Port, ...] = ()
     period: int = 1
+    #: Set to a message in ``step`` to stop the run cleanly after this step's
+    #: outputs are published (e.g. the coil driver refusing a NaN command:
+    #: it outputs zero field and sets ``fault``). The run records the fault.
+    fault: str | None = None
 
     #: Set True to receive the scenario's path object as ``params["path"]``.
     uses_path: bool = False

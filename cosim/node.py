@@ -7,10 +7,10 @@ liveliness token and serves, from one event queue fed by its subscribers:
 
 * ticks on ``cosim/{run}/ctl/tick``: when the tick is due for it (its
   period) and its inputs stamped for that tick have arrived: step, publish
-  the outputs, reply;
+  the outputs, reply; a ``check`` tick (set-up) asks which inputs' initial
+  values have not arrived yet;
 * commands on ``cosim/{run}/ctl/{name}/cmd``: ``init`` (publish the initial
-  outputs), ``check`` (report which inputs' initial values have not arrived),
-  ``stop``.
+  outputs), ``stop``.
 
 Replies go to ``cosim/{run}/ctl/{name}/reply`` as
 ``{"name", "tick", "phase", "ok"[, "error"]}``.
@@ -23,6 +23,7 @@ import sys
 from collections import deque
 
 from cosim import bus
+from cosim.component import ComponentFault
 from cosim.portcache import PortStore, expected_stamp
 from cosim.scenario import Scenario
 from cosim.stepper import Stepper, setup_component
@@ -34,7 +35,7 @@ IDLE_TIMEOUT_S = 120.0
 def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str]) -> int:
     """Serve component ``name`` until told to stop; returns an exit status."""
     session = bus.open_session(connect=connect, mode="client")
-    reply_pub = session.declare_publisher(bus.ctl_key(run_id, name, "reply"), express=True)
+    reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
     events: queue.SimpleQueue = queue.SimpleQueue()
     edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
     store = PortStore([(src, port) for src, port, _, _ in edges])
@@ -85,7 +86,10 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
             if kind == "data":
                 store.store(event[1], event[2], event[3])
             elif kind == "tick":
-                if event[1]["tick"] % period == 0:
+                if event[1].get("check"):
+                    missing = [f"{s}.{p}" for s, p, _, _ in edges if not store.has(s, p, -1)]
+                    reply(-1, "check", missing=missing)
+                elif event[1]["tick"] % period == 0:
                     waiting.append(event[1])
             else:
                 cmd = event[1]["cmd"]
@@ -94,14 +98,13 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
                 if cmd == "init":
                     stepper.publish_initial()
                     reply(-1, "init")
-                elif cmd == "check":
-                    missing = [f"{s}.{p}" for s, p, _, _ in edges if not store.has(s, p, -1)]
-                    reply(-1, "check", missing=missing)
             while waiting and inputs_ready(waiting[0]["tick"]):
                 msg = waiting.popleft()
                 try:
                     stepper.step(msg["tick"], msg["t"])
                     reply(msg["tick"])
+                except ComponentFault as exc:
+                    reply(msg["tick"], error=str(exc), fault=f"{exc} (t = {msg['t']:.3f} s)")
                 except Exception as exc:  # the component's failure goes to the scheduler with its text
                     reply(msg["tick"], error=f"failed at t = {msg['t']:.3f} s: {type(exc).__name__}: {exc}")
     finally:

@@ -25,7 +25,7 @@ from cosim.paths import make_path
 from cosim.portcache import PortCache
 from cosim.recorder import TraceRecorder
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
-from cosim.scheduler import LocalGroup, RemoteGroup, RunError, Scheduler
+from cosim.scheduler import LocalGroup, RemoteGroup, RunError, RunFault, Scheduler
 from cosim.stepper import Stepper, setup_component
 from cosim.wiring import build_wiring
 
@@ -58,7 +58,7 @@ def run(request: RunRequest) -> dict[str, Any]:
         sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
                          request.processes, request.progress)
         summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
-        rows.append({**labels, "tracking_error_mm": summary["tracking_error_mm"],
+        rows.append({**labels, "tracking_error_mm": summary["tracking_error_mm"], "solve_ms": summary["solve_ms"],
                      "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
     summary = {"scenario": scenario.name, "sweep": rows}
     _write_json(request.out_dir / "summary.json", summary)
@@ -132,11 +132,17 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         mm = err * 1e3
         stats = {"mean": float(np.mean(mm)), "std": float(np.std(mm)), "max": float(np.max(mm))}
     sim = completed * scenario.dt_s
+    solve = recorder.signal("solve_time")
+    solve_ms = None
+    if solve is not None and np.isfinite(solve).any():
+        ms = solve[np.isfinite(solve)] * 1e3
+        solve_ms = {"median": float(np.median(ms)), "p99": float(np.percentile(ms, 99))}
     return {
         "scenario": scenario.name,
-        "status": "failed" if error else "ok",
+        "status": "fault" if isinstance(error, RunFault) else "failed" if error else "ok",
         "error": str(error) if error else None,
         "tracking_error_mm": stats,
+        "solve_ms": solve_ms,
         "steps": completed,
         "sim_time_s": sim,
         "wall_time_s": wall_s,
@@ -150,14 +156,16 @@ def sweep_table(rows: list[dict]) -> str:
     """Markdown table of a sweep: the labels, then tracking error mean +- std and max [mm]."""
     if not rows:
         return ""
-    label_keys = [k for k in rows[0] if k not in ("tracking_error_mm", "status", "dir")]
-    head = "| " + " | ".join([*label_keys, "tracking error [mm]", "max [mm]", "status"]) + " |"
-    lines = [head, "|" + "---|" * (len(label_keys) + 3)]
+    label_keys = [k for k in rows[0] if k not in ("tracking_error_mm", "solve_ms", "status", "dir")]
+    head = "| " + " | ".join([*label_keys, "tracking error [mm]", "max [mm]", "solve median / p99 [ms]",
+                              "status"]) + " |"
+    lines = [head, "|" + "---|" * (len(label_keys) + 4)]
     for r in rows:
-        e = r["tracking_error_mm"] or {}
+        e, s = r["tracking_error_mm"] or {}, r.get("solve_ms") or {}
         stat = f"{e['mean']:.2f} ± {e['std']:.2f}" if e else "-"
         mx = f"{e['max']:.2f}" if e else "-"
-        lines.append("| " + " | ".join([*(str(r[k]) for k in label_keys), stat, mx, r["status"]]) + " |")
+        solve = f"{s['median']:.3f} / {s['p99']:.3f}" if s else "-"
+        lines.append("| " + " | ".join([*(str(r[k]) for k in label_keys), stat, mx, solve, r["status"]]) + " |")
     return "\n".join(lines) + "\n"
 
 

@@ -77,6 +77,7 @@ class RecordSpec(_Strict):
     axis: str | None = "plant.axis"
     field: str | None = "plant.field"
     coil_current: str | None = "plant.coil_current_amp"
+    solve_time: str | None = "controller.solve_time"
 
 
 class Scenario(_Strict):

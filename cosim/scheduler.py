@@ -28,6 +28,7 @@ import numpy as np
 import zenoh
 
 from cosim import bus
+from cosim.component import ComponentFault
 from cosim.errors import UserError
 from cosim.portcache import PortCache, PortTimeout, expected_stamp
 from cosim.scenario import Scenario
@@ -41,6 +42,13 @@ class RunError(UserError):
     def __init__(self, component: str, message: str):
         super().__init__(f"component {component!r}: {message}")
         self.component = component
+
+
+class RunFault(RunError):
+    """A component stopped the run on an unsafe condition (its outputs were made safe first)."""
+
+    def __init__(self, component: str, message: str):
+        super().__init__(component, f"fault: {message}")
 
 
 class Observer(Protocol):
@@ -104,9 +112,9 @@ class RemoteGroup:
     def __init__(self, session: zenoh.Session, run_id: str, names: list[str]):
         self.names = names
         self._dead: set[str] = set()
-        self._tick_pub = session.declare_publisher(bus.tick_key(run_id), express=True)
-        self._cmd_pubs = {n: session.declare_publisher(bus.ctl_key(run_id, n, "cmd"), express=True) for n in names}
-        self._wake_pubs = {n: session.declare_publisher(bus.ctl_key(run_id, n, "reply")) for n in names}
+        self._tick_pub = bus.publisher(session, bus.tick_key(run_id))
+        self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}
+        self._wake_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "reply")) for n in names}
         self._replies = session.declare_subscriber(bus.ctl_key(run_id, "*", "reply"))
         self._alive = session.liveliness().declare_subscriber(bus.alive_key(run_id), self._on_alive)
 
@@ -124,17 +132,33 @@ class RemoteGroup:
     def command(self, name: str, cmd: str) -> None:
         self._cmd_pubs[name].put(bus.encode_json({"cmd": cmd}))
 
-    def gather(self, names, tick: int, phase: str | None) -> dict[str, dict]:
-        """Wait for one reply of ``phase`` for ``tick`` from each of ``names``."""
+    def gather(self, names, tick: int, phase: str | None, progress: Progress | None = None,
+               resend: Callable[[list[str]], None] | None = None) -> dict[str, dict]:
+        """Wait for one reply of ``phase`` for ``tick`` from each of ``names``.
+
+        With ``resend`` (set-up only, where a message can precede its route),
+        the request is sent again to those that have not answered within 0.5 s.
+        """
         pending, got = set(names), {}
         while pending:
-            reply = bus.decode_json(self._replies.recv().payload.to_bytes())
+            if resend is None:
+                sample = self._replies.recv()
+            else:
+                sample = bus.poll(self._replies.try_recv, 0.5)
+                if sample is None:
+                    resend(sorted(pending))
+                    continue
+            reply = bus.decode_json(sample.payload.to_bytes())
             name = reply.get("name", "?")
+            if reply.get("fault"):
+                raise RunFault(name, reply["fault"])
             if not reply.get("ok", False):
                 raise RunError(name, reply.get("error", "failed"))
             if name in pending and reply.get("tick") == tick and reply.get("phase") == phase:
                 pending.discard(name)
                 got[name] = reply
+                if progress is not None:  # the first unfinished in wiring order is the one to blame
+                    progress.pending = tuple(n for n in progress.pending if n in pending)
         return got
 
     def poll_reply(self, timeout_s: float) -> dict | None:
@@ -150,16 +174,22 @@ class RemoteGroup:
         have propagated through the router; a value sent earlier is lost, so
         producers re-send until every consumer confirms receipt.
         """
+        def init(names):
+            for name in names:
+                self.command(name, "init")
+
+        def check(names):  # over the tick key, so its routes are proven too
+            self._tick_pub.put(bus.encode_json({"tick": -1, "t": 0.0, "check": True}))
+
         senders = list(order)
         for _ in range(tries):
             progress.busy(*senders)
-            for name in senders:
-                self.command(name, "init")
-            self.gather(senders, -1, "init")
+            init(senders)
+            self.gather(senders, -1, "init", resend=init)
             progress.busy(*order)
-            for name in order:
-                self.command(name, "check")
-            missing = {m.split(".")[0] for r in self.gather(order, -1, "check").values() for m in r["missing"]}
+            check(order)
+            replies = self.gather(order, -1, "check", resend=check)
+            missing = {m.split(".")[0] for r in replies.values() for m in r["missing"]}
             missing.update(observed_missing())
             if not missing:
                 return
@@ -170,7 +200,7 @@ class RemoteGroup:
     def step(self, tick: int, t: float, due: list[str], progress: Progress) -> None:
         progress.busy(*due)
         self._tick_pub.put(bus.encode_json({"tick": tick, "t": t}))
-        self.gather(due, tick, None)
+        self.gather(due, tick, None, progress)
 
     def close(self, hung: str | None) -> None:
         for name in self.names:
@@ -228,7 +258,7 @@ class Scheduler:
             return self._stop(name, f"its process ended unexpectedly (tick {max(state.tick, 0)})")
         pending = state.pending
         if pending:
-            limit = max(self.timeouts.get(n, self.scenario.timeout_s) for n in pending)
+            limit = self.timeouts.get(pending[0], self.scenario.timeout_s)  # the others wait on it
             if time.monotonic() - state.since > limit:
                 t = max(state.tick, 0) * self.scenario.dt_s
                 self._stop(pending[0], f"step at t = {t:.3f} s did not finish within {limit:g} s (hung)")
@@ -264,6 +294,9 @@ class Scheduler:
             self._fail(RunError(exc.component, f"its output {exc.port!r} for tick {exc.stamp} never arrived"))
         except RunError as exc:
             self._fail(exc)
+        except ComponentFault as exc:
+            self._fail(RunFault(state.pending[0] if state.pending else "scheduler",
+                                f"{exc} (t = {max(state.tick, 0) * dt:.3f} s)"))
         except Exception as exc:  # a local component's failure, reported with its name
             name = state.pending[0] if state.pending else "scheduler"
             self._fail(RunError(name, f"failed at t = {max(state.tick, 0) * dt:.3f} s: {type(exc).__name__}: {exc}"))

@@ -14,7 +14,7 @@ import numpy as np
 import zenoh
 
 from cosim import bus
-from cosim.component import Component, ComponentError
+from cosim.component import Component, ComponentError, ComponentFault
 from cosim.paths import make_path
 from cosim.portcache import PortCache, expected_stamp
 from cosim.scenario import Scenario
@@ -55,7 +55,7 @@ class Stepper:
         self._inputs = [(e.dst_port, e.src, e.src_port, wiring.periods[e.src], e.delay)
                         for e in wiring.edges_into(name)]
         self._ports = {p.name: p.shape for p in wiring.outputs[name]}
-        self._pubs = {p: session.declare_publisher(bus.port_key(run_id, name, p), express=True) for p in self._ports}
+        self._pubs = {p: bus.publisher(session, bus.port_key(run_id, name, p)) for p in self._ports}
 
     def publish_initial(self) -> None:
         self._publish(-1, self.component.initial_outputs())
@@ -64,6 +64,8 @@ class Stepper:
         inputs = {dst: self.cache.get(src, port, expected_stamp(tick, period, delay), self.timeout_s)
                   for dst, src, port, period, delay in self._inputs}
         self._publish(tick, self.component.step(t, inputs))
+        if self.component.fault:
+            raise ComponentFault(self.component.fault)
 
     def _publish(self, tick: int, outputs: dict[str, np.ndarray]) -> None:
         if outputs is None or set(outputs) != set(self._ports):

@@ -4,14 +4,18 @@ omega [rad/s] -> a field of ``field_mT`` rotating about omega at
 ``|omega| / 2 pi`` Hz -> least-norm coil current phasors from the centre
 field matrix -> voltage phasors through each coil's series RLC impedance ->
 scaled down together if any exceeds the supply limit (the field keeps its
-direction and loses magnitude). A non-finite omega commands zero field.
+direction and loses magnitude).
+
+Safety: a non-finite omega, or one above ``f_limit_hz``, never reaches the
+coils: the driver outputs zero field and raises a fault that stops the run
+cleanly (recorded in the summary).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, Port
+from cosim import Component, ComponentError, Port
 from cosim.params import Param, read_params
 from cosim_plugins.coil_driver.actuation import (
     centre_matrix,
@@ -32,7 +36,10 @@ PARAMS = {
     "c_f": Param(430e-6, "series capacitor [F]", 1e-12, 100.0),
     "v_max": Param(40.0, "supply limit per coil [V] (two +-20 V supplies in series)", 0.0, 1e4),
     "f_min_hz": Param(0.05, "below this spin frequency the field is off [Hz]", 0.0, 100.0),
+    "f_limit_hz": Param(60.0, "a command above this spin frequency is a fault [Hz]", 0.0, 1e4),
+    "backend": Param("fmu", "where the voltages go: 'fmu' (the plant's coil inputs)"),
 }
+BACKENDS = ("fmu",)
 
 
 class InverseMagnetics(Component):
@@ -48,9 +55,9 @@ class InverseMagnetics(Component):
     def setup(self, params, rng):
         p = self.p = read_params(params, PARAMS)
         if p["r_outer_mm"] <= p["r_inner_mm"]:
-            from cosim import ComponentError
-
             raise ComponentError("r_outer_mm must exceed r_inner_mm")
+        if p["backend"] not in BACKENDS:
+            raise ComponentError(f"backend {p['backend']!r} unknown; known: {', '.join(BACKENDS)}")
         g = loop_field_on_axis_t_per_a(p["turns"], p["r_inner_mm"] * 1e-3, p["r_outer_mm"] * 1e-3,
                                        p["z_near_mm"] * 1e-3, (p["z_near_mm"] + p["thickness_mm"]) * 1e-3)
         self.m_pinv = np.linalg.pinv(centre_matrix(g))  # (6, 3) A/T
@@ -62,7 +69,10 @@ class InverseMagnetics(Component):
     def step(self, t, inputs):
         omega = inputs["omega"]
         f = np.linalg.norm(omega) / (2 * np.pi)
-        if not np.all(np.isfinite(omega)) or f < self.p["f_min_hz"] or self.p["field_mT"] == 0.0:
+        if not np.all(np.isfinite(omega)) or f > self.p["f_limit_hz"]:
+            self.fault = f"unsafe command omega = {omega} rad/s (limit {self.p['f_limit_hz']:g} Hz): field off"
+            return self.zero
+        if f < self.p["f_min_hz"] or self.p["field_mT"] == 0.0:
             return self.zero
         field = rotating_field_phasor(omega, self.p["field_mT"] * 1e-3)
         current = self.m_pinv @ field  # (6,) complex A

@@ -14,6 +14,7 @@ import numpy as np
 
 from cosim import Component, Port
 from cosim.params import Param, read_params
+from cosim_plugins.controllers.common import CONTROLLER_OUTPUTS, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 
 PARAMS = {
@@ -36,7 +37,7 @@ class PIController(Component):
         Port("position", (3,), "m", "estimated position (NaN: none yet)"),
         Port("velocity", (3,), "m/s", "estimated velocity"),
     )
-    outputs = (Port("omega", (3,), "rad/s", "commanded rotation vector of the field"),)
+    outputs = CONTROLLER_OUTPUTS
 
     def setup(self, params, rng):
         p = read_params(params, PARAMS)
@@ -50,9 +51,13 @@ class PIController(Component):
         self.integral = np.zeros(3)
 
     def step(self, t, inputs):
-        pos, vel = inputs["position"], inputs["velocity"]
+        with SolveTimer() as timer:
+            omega = self._control(t, inputs["position"], inputs["velocity"])
+        return {"omega": omega, "solve_time": timer.elapsed}
+
+    def _control(self, t, pos, vel):
         if not np.all(np.isfinite(pos)):
-            return {"omega": np.zeros(3)}
+            return np.zeros(3)
         target, closest, at_end = self.pursuit.reference(pos, vel, t)
         to_target = target - pos
         dist = np.linalg.norm(to_target)
@@ -60,7 +65,7 @@ class PIController(Component):
         cross = closest - pos
         self.integral = _clip_norm(self.integral + self.ki * cross * self.dt, self.i_max)
         v_des = speed * to_target / max(dist, 1e-9) + self.kp * cross + self.integral
-        return {"omega": velocity_to_omega(v_des, self.m_per_hz, self.f_max)}
+        return velocity_to_omega(v_des, self.m_per_hz, self.f_max)
 
 
 def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:

@@ -7,6 +7,7 @@ be tested quickly and on its own.
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -37,7 +38,7 @@ class KinematicPlant(Component):
 
 
 class Faulty(Component):
-    """Passes position through; raises or hangs at ``fail_at_s``."""
+    """Passes position through; at ``fail_at_s`` raises, hangs, or ends its process (``mode``)."""
 
     inputs = (Port("position", (3,), "m"),)
     outputs = (Port("position", (3,), "m"),)
@@ -49,6 +50,8 @@ class Faulty(Component):
         if t >= self.fail_at:
             if self.mode == "raise":
                 raise ComponentError("deliberate failure")
+            if self.mode == "exit":
+                os._exit(3)
             time.sleep(3600)
         return {"position": inputs["position"]}
 

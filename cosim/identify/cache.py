@@ -1,0 +1,65 @@
+"""Models trained on demand from the paper dataset, cached beside it.
+
+A scenario names a model either by file (``model: path/to/sindy-linear.npz``)
+or by kind (``model: sindy-linear``); a kind is trained here on the paper's
+12 training logs (generated first if missing, see :mod:`cosim.dataset`) and
+kept under ``<cache>/models[_quick]/<dataset fingerprint>/``, so a fresh
+clone runs such scenarios with no manual step and later runs reuse the file.
+``COSIM_DATASET=quick`` trains on the short (40 s per case) dataset instead.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+from cosim.dataset import cache_dir, ensure_dataset
+from cosim.errors import UserError
+
+
+def _progress(message: str) -> None:
+    print(f"  {message}", file=sys.stderr)
+
+
+def quick_data() -> bool:
+    """Whether on-demand models use the short dataset (``COSIM_DATASET=quick``; tests set it)."""
+    return os.environ.get("COSIM_DATASET", "full") == "quick"
+
+
+def ensure_model(kind: str, quick: bool | None = None, seed: int = 0) -> Path:
+    """Path of a ``kind`` model trained on the paper dataset (trained now if not cached)."""
+    quick = quick_data() if quick is None else quick
+    from cosim.identify.dataset import Dataset
+    from cosim.identify.fit import fit_models, resolve_names
+
+    resolve_names(kind)  # unknown kinds fail here, listing the known ones
+    dataset_files = ensure_dataset(quick=quick)
+    stamp = json.loads((dataset_files.folder / "manifest.json").read_text())["fingerprint"]
+    folder = cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}"
+    path = folder / f"{kind}.npz"
+    if path.is_file():
+        return path
+    print(f"training the {kind} model on the paper dataset (cached in {folder})", file=sys.stderr)
+    dataset = Dataset.from_paths(dataset_files.training)
+    model = fit_models(dataset, [kind], seed=seed, progress=_progress)[kind]
+    folder.mkdir(parents=True, exist_ok=True)
+    model.save(path)
+    return path
+
+
+def resolve_model(spec: str, base_dir: Path | None = None, quick: bool | None = None):
+    """A loaded model from a file path or a kind name (trained on demand); clear errors for both."""
+    from cosim.identify.model import load_model
+    from cosim.plugins import registry
+
+    candidate = Path(spec)
+    if base_dir is not None and not candidate.is_absolute():
+        candidate = base_dir / candidate
+    if candidate.suffix == ".npz" or candidate.is_file():
+        return load_model(candidate)
+    if spec not in registry("model"):
+        raise UserError(f"model {spec!r} is neither a model file nor a known kind "
+                        f"({', '.join(sorted(registry('model')))})")
+    return load_model(ensure_model(spec, quick=quick))

@@ -1,0 +1,27 @@
+"""What every controller shares: its output ports and the solve timer."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from cosim import Port
+
+#: Every controller outputs the rotation vector and the wall time its computation took.
+CONTROLLER_OUTPUTS = (
+    Port("omega", (3,), "rad/s", "commanded rotation vector of the field"),
+    Port("solve_time", (), "s", "wall time of this step's computation (diagnostic only)"),
+)
+
+
+class SolveTimer:
+    """Measures a controller's computation. The one clock reading a component makes: it is
+    reported, never fed back into the run, so logs stay deterministic."""
+
+    def __enter__(self):
+        self._t0 = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc):
+        self.elapsed = np.array(time.perf_counter() - self._t0)

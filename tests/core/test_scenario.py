@@ -1,0 +1,90 @@
+"""Scenario files: validation errors name the field and the line; overrides and sweeps."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import pytest
+
+from cosim.cli import main
+from cosim.scenario import ScenarioError, load_scenario, sweep_overrides
+
+GOOD = textwrap.dedent("""\
+    name: t
+    duration_s: 1
+    components:
+      a:
+        plugin: camera.emulator
+        inputs: {position: a.position}
+""")
+
+
+def write(tmp_path, text, name="s.yaml"):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def test_unknown_field_is_named_with_its_line(tmp_path):
+    path = write(tmp_path, GOOD.replace("duration_s: 1", "duration_s: 1\nspeedup: 3"))
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(path)
+    assert "speedup (line 3): unknown field" in str(err.value)
+
+
+def test_bad_value_is_named_with_its_line(tmp_path):
+    path = write(tmp_path, GOOD.replace("duration_s: 1", "duration_s: -2"))
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(path)
+    assert "duration_s (line 2)" in str(err.value) and "greater than 0" in str(err.value)
+
+
+def test_yaml_syntax_error_names_the_line(tmp_path):
+    path = write(tmp_path, "name: t\ncomponents: [a\n")
+    with pytest.raises(ScenarioError, match=r"line \d+: not valid YAML"):
+        load_scenario(path)
+
+
+def test_wire_to_missing_component(tmp_path):
+    path = write(tmp_path, GOOD.replace("a.position}", "ghost.position}"))
+    with pytest.raises(ScenarioError, match="source component 'ghost' is not in the scenario"):
+        load_scenario(path)
+
+
+def test_set_overrides_and_rejects_garbage(tmp_path):
+    path = write(tmp_path, GOOD)
+    s = load_scenario(path, ["duration_s=2.5", "components.a.params.interval_s=0.1"])
+    assert s.duration_s == 2.5 and s.components["a"].params == {"interval_s": 0.1}
+    with pytest.raises(ScenarioError, match="expected key=value"):
+        load_scenario(path, ["duration_s"])
+
+
+def test_sweep_product_and_labels(tmp_path):
+    path = write(tmp_path, GOOD + textwrap.dedent("""\
+        sweep:
+          components.a.params.interval_s: [0.02, 0.04]
+          variant:
+            - {label: quiet, components.a.params.noise_px: 0.0}
+            - {label: noisy, components.a.params.noise_px: 2.0}
+    """))
+    combos = sweep_overrides(load_scenario(path))
+    assert [labels for labels, _ in combos] == [
+        {"interval_s": 0.02, "variant": "quiet"}, {"interval_s": 0.02, "variant": "noisy"},
+        {"interval_s": 0.04, "variant": "quiet"}, {"interval_s": 0.04, "variant": "noisy"}]
+    assert combos[3][1] == ["components.a.params.interval_s=0.04", "components.a.params.noise_px=2.0"]
+
+
+def test_cli_exit_codes_and_messages(tmp_path, capsys):
+    bad = write(tmp_path, GOOD.replace("camera.emulator", "camera.nonexistent"))
+    assert main(["validate", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown component 'camera.nonexistent'" in err and "camera.emulator" in err  # lists known ones
+    assert main(["validate", str(tmp_path / "missing.yaml")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_schema_is_json_schema(capsys):
+    assert main(["schema"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    assert schema["additionalProperties"] is False and "components" in schema["required"]
