@@ -97,18 +97,20 @@ def tick_key(run_id: str) -> str:
     return f"{ROOT}/{run_id}/ctl/tick"
 
 
+_HEAD = struct.Struct("<qB")
+
+
 def encode_array(value: np.ndarray, tick: int) -> tuple[bytes, bytes]:
     """``(payload, attachment)`` for an array produced at ``tick``."""
     arr = np.asarray(value, dtype=_F64)
-    header = struct.pack(f"<qB{arr.ndim}i", tick, arr.ndim, *arr.shape)
-    return arr.tobytes(), header
+    return arr.tobytes(), _HEAD.pack(tick, arr.ndim) + struct.pack(f"<{arr.ndim}i", *arr.shape)
 
 
 def decode_array(payload: bytes, attachment: bytes) -> tuple[int, np.ndarray]:
-    """Inverse of :func:`encode_array`: ``(tick, array)``."""
-    tick, ndim = struct.unpack_from("<qB", attachment)
-    shape = struct.unpack_from(f"<{ndim}i", attachment, 9)
-    return tick, np.frombuffer(payload, dtype=_F64).reshape(shape).copy()
+    """Inverse of :func:`encode_array`: ``(tick, array)``; the array is read-only."""
+    tick, ndim = _HEAD.unpack_from(attachment)
+    shape = struct.unpack_from(f"<{ndim}i", attachment, _HEAD.size)
+    return tick, np.frombuffer(payload, dtype=_F64).reshape(shape)
 
 
 def encode_json(obj) -> bytes:

@@ -77,6 +77,12 @@ class Component:
         component and seeded from the scenario seed and the component name.
         """
 
+    @classmethod
+    def validate_params(cls, params: Mapping[str, Any]) -> None:
+        """Check the scenario's ``params`` cheaply, with no side effect (nothing trained,
+        nothing written); raise :class:`ComponentError`. Called by ``cosim validate`` and
+        before any component is set up, so bad input fails before a run starts."""
+
     def initial_outputs(self) -> dict[str, np.ndarray]:
         """Outputs before the first step (used by delayed edges at t = 0). Default: zeros."""
         return {p.name: p.zeros() for p in self.outputs}

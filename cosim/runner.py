@@ -27,6 +27,7 @@ from cosim.recorder import TraceRecorder
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
 from cosim.scheduler import LocalGroup, RemoteGroup, RunError, RunFault, Scheduler
 from cosim.stepper import Stepper, setup_component
+from cosim.summary import METRICS, largest_below, run_figures, sweep_plot, sweep_table
 from cosim.wiring import build_wiring
 
 
@@ -58,12 +59,21 @@ def run(request: RunRequest) -> dict[str, Any]:
         sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
                          request.processes, request.progress)
         summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
-        rows.append({**labels, "tracking_error_mm": summary["tracking_error_mm"], "solve_ms": summary["solve_ms"],
+        rows.append({**labels, **{k: summary[k] for k in METRICS if summary[k] is not None},
                      "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
-    summary = {"scenario": scenario.name, "sweep": rows}
+    summary: dict[str, Any] = {"scenario": scenario.name, "sweep": rows}
+    table = sweep_table(rows)
+    threshold = scenario.report.threshold_mm
+    if threshold:
+        summary["largest_below_threshold"] = largest_below(rows, threshold)
+    summary["plots"] = [p.name for p in sweep_plot(rows, request.out_dir, threshold)]
     _write_json(request.out_dir / "summary.json", summary)
-    (request.out_dir / "summary.md").write_text(sweep_table(rows))
-    print(sweep_table(rows))
+    (request.out_dir / "summary.md").write_text(table)
+    print(table)
+    for item in summary.get("largest_below_threshold", []):
+        group = " ".join(f"{k}={v}" for k, v in item.items() if k not in ("axis", "largest_below", "threshold_mm"))
+        print(f"largest {item['axis']} with mean tracking error below {threshold:g} mm: "
+              f"{item['largest_below']} ({group})")
     return summary
 
 
@@ -126,23 +136,12 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
              total_wall_s: float, error: RunError | None) -> dict[str, Any]:
     """``wall_time_s`` and ``realtime_factor`` cover the stepping loop; ``total_wall_time_s``
     adds set-up (processes, FMU instantiation) and writing the outputs."""
-    err = recorder.tracking_error_m
-    stats = None
-    if err is not None and len(err):
-        mm = err * 1e3
-        stats = {"mean": float(np.mean(mm)), "std": float(np.std(mm)), "max": float(np.max(mm))}
     sim = completed * scenario.dt_s
-    solve = recorder.signal("solve_time")
-    solve_ms = None
-    if solve is not None and np.isfinite(solve).any():
-        ms = solve[np.isfinite(solve)] * 1e3
-        solve_ms = {"median": float(np.median(ms)), "p99": float(np.percentile(ms, 99))}
     return {
         "scenario": scenario.name,
         "status": "fault" if isinstance(error, RunFault) else "failed" if error else "ok",
         "error": str(error) if error else None,
-        "tracking_error_mm": stats,
-        "solve_ms": solve_ms,
+        **run_figures(recorder),
         "steps": completed,
         "sim_time_s": sim,
         "wall_time_s": wall_s,
@@ -150,23 +149,6 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         "total_wall_time_s": total_wall_s,
         "files": {k: v.name for k, v in recorder.files.items()},
     }
-
-
-def sweep_table(rows: list[dict]) -> str:
-    """Markdown table of a sweep: the labels, then tracking error mean +- std and max [mm]."""
-    if not rows:
-        return ""
-    label_keys = [k for k in rows[0] if k not in ("tracking_error_mm", "solve_ms", "status", "dir")]
-    head = "| " + " | ".join([*label_keys, "tracking error [mm]", "max [mm]", "solve median / p99 [ms]",
-                              "status"]) + " |"
-    lines = [head, "|" + "---|" * (len(label_keys) + 4)]
-    for r in rows:
-        e, s = r["tracking_error_mm"] or {}, r.get("solve_ms") or {}
-        stat = f"{e['mean']:.2f} ± {e['std']:.2f}" if e else "-"
-        mx = f"{e['max']:.2f}" if e else "-"
-        solve = f"{s['median']:.3f} / {s['p99']:.3f}" if s else "-"
-        lines.append("| " + " | ".join([*(str(r[k]) for k in label_keys), stat, mx, solve, r["status"]]) + " |")
-    return "\n".join(lines) + "\n"
 
 
 # ---------------------------------------------------------------- processes

@@ -78,6 +78,16 @@ class RecordSpec(_Strict):
     field: str | None = "plant.field"
     coil_current: str | None = "plant.coil_current_amp"
     solve_time: str | None = "controller.solve_time"
+    #: Measurement minus the estimator's prediction at each frame (NaN between frames).
+    prediction_error: str | None = "estimator.innovation"
+
+
+class ReportSpec(_Strict):
+    """Extra figures for a sweep's summary."""
+
+    threshold_mm: float | None = Field(None, gt=0, description=(
+        "report, per group of the other labels, the largest value of each numeric sweep axis "
+        "whose mean tracking error stays below this"))
 
 
 class Scenario(_Strict):
@@ -93,6 +103,7 @@ class Scenario(_Strict):
     components: dict[str, ComponentSpec]
     record: RecordSpec = Field(default_factory=RecordSpec)
     sweep: dict[str, list[Any]] = Field(default_factory=dict)
+    report: ReportSpec = Field(default_factory=ReportSpec)
 
     @model_validator(mode="after")
     def _check_wiring(self):
@@ -227,7 +238,8 @@ def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]
     An axis named by a dotted path (``components.camera.params.interval_s``)
     sets that field; its label is the last part (``interval_s``). An axis with
     a plain name (``estimator``) lists mappings of dotted paths to values,
-    each with an optional ``label``; its label is that (or the first value).
+    each with an optional ``label`` (default: the first value) and any other
+    plain keys as further labels (``model: physical``).
     Overrides are ``key=value`` strings as ``--set`` takes them.
     """
     axes = list(scenario.sweep.items())
@@ -246,8 +258,11 @@ def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]
             value = dict(value)
             label = value.pop("label", None)
             for k, v in value.items():
-                overrides.append(f"{k}={json.dumps(v)}")
-                label = v if label is None else label
+                if "." in k:
+                    overrides.append(f"{k}={json.dumps(v)}")
+                    label = v if label is None else label
+                else:  # a plain key is one more label of this run (e.g. model: physical)
+                    labels[k] = v
             labels[axis] = label
         out.append((labels, overrides))
     return out

@@ -79,6 +79,11 @@ def build_wiring(scenario: Scenario) -> Wiring:
         missing = [p.name for p in inputs[dst] if p.name not in spec.inputs]
         if missing:
             raise WiringError(f"components.{dst}.inputs: not wired: {', '.join(missing)}")
+    for name, spec in scenario.components.items():
+        try:
+            classes[name].validate_params(spec.params)
+        except UserError as exc:
+            raise WiringError(f"components.{name}.params ({spec.plugin}): {exc}") from None
     order = _topological_order(list(scenario.components), edges)
     periods = {name: spec.period for name, spec in scenario.components.items()}
     return Wiring(classes, inputs, outputs, edges, order, periods)

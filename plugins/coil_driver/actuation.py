@@ -48,9 +48,10 @@ def rotating_field_phasor(omega_rad_s: np.ndarray, amplitude_t: float) -> np.nda
     ``B(t) = Re(phasor * exp(j 2 pi f t)) = A (e1 cos(2 pi f t) + e2 sin(2 pi f t))``
     with ``(e1, e2, omega_hat)`` a right-handed orthonormal frame.
     """
-    n = omega_rad_s / np.linalg.norm(omega_rad_s)
-    helper = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    e1 = np.cross(helper, n)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
+    nx, ny, nz = omega_rad_s / np.sqrt(omega_rad_s @ omega_rad_s)
+    if abs(nz) < 0.9:  # e1 = z x n, normalised
+        e1 = np.array([-ny, nx, 0.0]) / np.hypot(nx, ny)
+    else:  # e1 = x x n, normalised
+        e1 = np.array([0.0, -nz, ny]) / np.hypot(ny, nz)
+    e2 = np.array([ny * e1[2] - nz * e1[1], nz * e1[0] - nx * e1[2], nx * e1[1] - ny * e1[0]])  # n x e1
     return amplitude_t * (e1 - 1j * e2)

@@ -1,0 +1,145 @@
+"""Figures of a run and of a sweep: summary.json content, the sweep table and plot.
+
+Run figures (all in mm or ms):
+
+* ``tracking_error_mm``: distance of the true position to the path, {mean, std, max};
+* ``estimation_error_mm``: distance of the estimate to the true position, {mean, std, max};
+* ``prediction_error_mm``: per-axis mean absolute and Euclidean RMS of the
+  estimator's innovation (measurement minus prediction at each frame, the
+  paper's Table IV), {x, y, z, rmse};
+* ``solve_ms``: the controller's computation per step, {median, p99}.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+METRICS = ("tracking_error_mm", "estimation_error_mm", "prediction_error_mm", "solve_ms")
+
+
+def _stats(values_mm: np.ndarray | None) -> dict | None:
+    if values_mm is None:
+        return None
+    v = values_mm[np.isfinite(values_mm)]
+    if not len(v):
+        return None
+    return {"mean": float(np.mean(v)), "std": float(np.std(v)), "max": float(np.max(v))}
+
+
+def run_figures(recorder) -> dict[str, Any]:
+    """The metrics of one run from a :class:`~cosim.recorder.TraceRecorder`."""
+    out: dict[str, Any] = {k: None for k in METRICS}
+    if recorder.tracking_error_m is not None:
+        out["tracking_error_mm"] = _stats(recorder.tracking_error_m * 1e3)
+    truth, estimate = recorder.signal("truth"), recorder.signal("estimate")
+    if truth is not None and estimate is not None:
+        out["estimation_error_mm"] = _stats(np.linalg.norm(estimate - truth, axis=1) * 1e3)
+    innov = recorder.signal("prediction_error")
+    if innov is not None:
+        rows = innov[np.all(np.isfinite(innov), axis=1)] * 1e3
+        if len(rows):
+            mae = np.abs(rows).mean(axis=0)
+            out["prediction_error_mm"] = {"x": float(mae[0]), "y": float(mae[1]), "z": float(mae[2]),
+                                          "rmse": float(np.sqrt((rows**2).sum(axis=1).mean())), "frames": len(rows)}
+    solve = recorder.signal("solve_time")
+    if solve is not None and np.isfinite(solve).any():
+        ms = solve[np.isfinite(solve)] * 1e3
+        out["solve_ms"] = {"median": float(np.median(ms)), "p99": float(np.percentile(ms, 99))}
+    return out
+
+
+def label_keys(rows: list[dict]) -> list[str]:
+    return [k for k in rows[0] if k not in (*METRICS, "status", "dir")] if rows else []
+
+
+def sweep_table(rows: list[dict]) -> str:
+    """Markdown table: the labels, then every metric present in any row."""
+    if not rows:
+        return ""
+    labels = label_keys(rows)
+    cols = [("tracking error [mm]", lambda r: _pm(r.get("tracking_error_mm"))),
+            ("max [mm]", lambda r: _f(r.get("tracking_error_mm"), "max"))]
+    if any(r.get("estimation_error_mm") for r in rows):
+        cols.append(("estimation error [mm]", lambda r: _pm(r.get("estimation_error_mm"))))
+    if any(r.get("prediction_error_mm") for r in rows):
+        cols.append(("prediction x / y / z / RMSE [mm]", lambda r: "/".join(
+            _f(r.get("prediction_error_mm"), k) for k in ("x", "y", "z", "rmse"))))
+    if any(r.get("solve_ms") for r in rows):
+        cols.append(("solve median / p99 [ms]", lambda r: "/".join(
+            _f(r.get("solve_ms"), k, 3) for k in ("median", "p99"))))
+    cols.append(("status", lambda r: r["status"]))
+    lines = ["| " + " | ".join([*labels, *(c for c, _ in cols)]) + " |",
+             "|" + "---|" * (len(labels) + len(cols))]
+    for r in rows:
+        lines.append("| " + " | ".join([*(str(r[k]) for k in labels), *(fn(r) for _, fn in cols)]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _f(d: dict | None, key: str, digits: int = 2) -> str:
+    return f"{d[key]:.{digits}f}" if d and d.get(key) is not None else "-"
+
+
+def _pm(d: dict | None) -> str:
+    return f"{d['mean']:.2f} ± {d['std']:.2f}" if d else "-"
+
+
+def numeric_axes(rows: list[dict]) -> list[str]:
+    return [k for k in label_keys(rows) if all(isinstance(r[k], (int, float)) for r in rows)
+            and len({r[k] for r in rows}) > 1]
+
+
+def largest_below(rows: list[dict], threshold_mm: float) -> list[dict]:
+    """Per group of the other labels, the largest value of each numeric axis whose mean
+    tracking error stays below ``threshold_mm`` (and every smaller value's too); None if none does."""
+    out = []
+    for axis in numeric_axes(rows):
+        others = [k for k in label_keys(rows) if k != axis]
+        groups: dict[tuple, list[dict]] = {}
+        for r in rows:
+            groups.setdefault(tuple(r[k] for k in others), []).append(r)
+        for key, members in groups.items():
+            best = None
+            for r in sorted(members, key=lambda r: r[axis]):
+                e = r.get("tracking_error_mm")
+                if not e or r["status"] != "ok" or e["mean"] >= threshold_mm:
+                    break
+                best = r[axis]
+            out.append({**dict(zip(others, key)), "axis": axis, "largest_below": best,
+                        "threshold_mm": threshold_mm})
+    return out
+
+
+def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = None) -> list[Path]:
+    """One PNG per numeric axis: mean tracking error against it, a line per group of other labels."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+    for axis in numeric_axes(rows):
+        others = [k for k in label_keys(rows) if k != axis]
+        groups: dict[tuple, list[dict]] = {}
+        for r in rows:
+            groups.setdefault(tuple(r[k] for k in others), []).append(r)
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for key, members in groups.items():
+            members = sorted(members, key=lambda r: r[axis])
+            x = [r[axis] for r in members]
+            y = [(r.get("tracking_error_mm") or {}).get("mean", np.nan) for r in members]
+            ax.plot(x, y, marker="o", label=", ".join(f"{k}={v}" for k, v in zip(others, key)) or "run")
+        if threshold_mm:
+            ax.axhline(threshold_mm, color="k", ls="--", lw=1, label=f"{threshold_mm:g} mm")
+        ax.set_xlabel(axis)
+        ax.set_ylabel("mean tracking error [mm]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = out_dir / f"sweep_{axis}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        files.append(path)
+    return files
