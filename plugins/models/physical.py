@@ -1,0 +1,412 @@
+"""The paper's physical model (Sec. II-A, Eq. 1-9), fitted by least squares.
+
+Units: p mm, v mm/s, u = omega Hz, forces uN, mass mg, so the acceleration
+is a [mm/s^2] = 1000 F / m. Forces (Eq. 1-7), with alpha the angle between
+omega and v, v_perp the unit vector normal to v in the (omega, v) plane and
+c_hat = -p / |p|::
+
+    F_r  = k omega                                   k    [uN/Hz]
+    F_d  = -(Cd0 sin(alpha) + Cd1) v                 Cd0, Cd1 [uN s/mm]
+    F_l  = Cl0 sin(2 alpha) |v| v_perp               Cl0  [uN s/mm]
+    F_vs = Fvs [0, 0, 1]                             Fvs  [uN]
+    F_c  = Fmax sin(pi |p| / |P_b|) c_hat            Fmax [uN], P_b = [70, 70, 70] mm
+
+plus any extra :class:`~cosim.identify.terms.ForceTerm`. With alpha, v_perp
+and c_hat taken from the data the force is linear in the six parameters.
+
+Integration (stable for any drag): over a step the drag is exact (exponential
+integrator with rate lambda = 1000 Cd / m), the other forces held constant,
+then the position moves with the new velocity: v' = e^{-lambda dt} v +
+dt phi1(lambda dt) a_other, p' = p + dt v'. So v' = (p' - p) / dt, the paper's
+backward-difference velocity, and a state built from data is consistent with
+the model's own.
+
+Fit: (1) the six base parameters by linear instrumental-variable least
+squares on the one-step velocity change, and a first-order response fit as a
+fallback start (the better of the two by the stage 2 objective); (2) all parameters (extra terms
+included) by ``scipy.optimize.least_squares`` on the multi-step position
+error of many windows rolled out at once, with each window's initial state
+eliminated by variable projection (measured V_i is noisy).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from cosim.errors import UserError
+from cosim.identify.model import Model
+from cosim.identify.terms import ForceTerm, Param
+
+BASE_PARAMS = (
+    Param("k", 0.1, unit="uN/Hz"),
+    Param("Cd0", 0.0, 0.0, math.inf, "uN s/mm"),
+    Param("Cd1", 0.05, 0.0, math.inf, "uN s/mm"),
+    Param("Cl0", 0.0, unit="uN s/mm"),
+    Param("Fvs", 0.0, unit="uN"),
+    Param("Fmax", 0.0, unit="uN"),
+)
+BASE_NAMES = tuple(p.name for p in BASE_PARAMS)
+
+
+def geometry(p, v, u, pb_norm_mm: float):
+    """Per-sample factors of Eq. 2-6.
+
+    Args: p, v, u: (n, 3) position [mm], velocity [mm/s], omega [Hz].
+    Returns:
+        sin_a: (n,) sin(alpha) (0 when omega or v vanishes),
+        lift: (n, 3) sin(2 alpha) |v| v_perp [mm/s],
+        cent: (n, 3) sin(pi |p| / |P_b|) c_hat [-].
+    """
+    sin_a, lift, cent = _geometry_t(p.T, v.T, u.T, pb_norm_mm)
+    return sin_a, lift.T, cent.T
+
+
+def _geometry_t(p, v, u, pb):
+    """:func:`geometry` on component-major arrays (3, n) (faster: contiguous rows)."""
+    vn = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    wn = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    den = vn * wn
+    ok = den > 1e-12
+    cos = np.where(ok, (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / np.where(ok, den, 1.0), 1.0)
+    np.clip(cos, -1.0, 1.0, out=cos)
+    sin_a = np.sqrt(1.0 - cos * cos)
+    # sin(2a) |v| v_perp = 2 cos (|v| w_hat - cos v): no division by sin(a)
+    c2 = 2.0 * cos * ok
+    lift = (c2 * vn / np.where(wn > 1e-12, wn, 1.0)) * u - (c2 * cos) * v
+    pn = np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+    cent = p * (-np.sin((np.pi / pb) * pn) / np.where(pn > 1e-12, pn, 1.0))
+    return sin_a, lift, cent
+
+
+def forces(p, v, u, params: dict, terms=(), pb_norm_mm: float = 70 * math.sqrt(3)):
+    """Total force [uN], (n, 3), at p [mm], v [mm/s], u [Hz] for named ``params``."""
+    sin_a, lift, cent = geometry(p, v, u, pb_norm_mm)
+    f = params["k"] * u - ((params["Cd0"] * sin_a + params["Cd1"])[:, None] * v)
+    f = f + params["Cl0"] * lift + params["Fmax"] * cent
+    f[:, 2] += params["Fvs"]
+    for term in terms:
+        f = f + term.force(p, v, u, _term_params(term, params))
+    return f
+
+
+def _term_params(term, params: dict) -> dict:
+    return {q.name: params[f"{term.name}.{q.name}"] for q in term.params}
+
+
+def phi1(z):
+    """(1 - exp(-z)) / z, accurate near 0."""
+    small = np.abs(z) < 1e-6
+    zs = np.where(small, 1.0, z)
+    return np.where(small, 1.0 - 0.5 * z, -np.expm1(-zs) / zs)
+
+
+class PhysicalModel(Model):
+    """Paper Eq. 1-9 with k, Cd0, Cd1, Cl0, Fvs, Fmax (+ extra terms); see module doc."""
+
+    name = "physical"
+    version = 1
+
+    def __init__(self, mass_mg=12.4, pb_mm=(70.0, 70.0, 70.0), horizon=20, max_windows=3000,
+                 max_nfev=25, vp_passes=2, substeps=1, seed=0, terms=()):
+        super().__init__(mass_mg=mass_mg, pb_mm=list(pb_mm), horizon=horizon, max_windows=max_windows,
+                         max_nfev=max_nfev, vp_passes=vp_passes, substeps=substeps, seed=seed)
+        self.terms: list[ForceTerm] = list(terms)
+        self._pb = float(np.linalg.norm(pb_mm))
+        self._scale = 1000.0 / mass_mg
+        self._theta = np.array([p.init for p in self.all_params()])
+        self.fit_info: dict = {}
+
+    @classmethod
+    def from_params(cls, params: dict, dt_s: float = 0.02, **options) -> "PhysicalModel":
+        """A model with given parameters (e.g. a synthetic plant); missing ones keep initial values."""
+        model = cls(**options)
+        model.set_params(params)
+        model.dt_s = dt_s
+        return model
+
+    # ------------------------------------------------------------ parameters
+
+    def all_params(self) -> list[Param]:
+        """Base and extra-term parameters, extra ones named ``term.param``."""
+        out = list(BASE_PARAMS)
+        for term in self.terms:
+            out += [Param(f"{term.name}.{q.name}", q.init, q.lo, q.hi, q.unit) for q in term.params]
+        return out
+
+    def set_params(self, params: dict) -> None:
+        names = [p.name for p in self.all_params()]
+        unknown = set(params) - set(names)
+        if unknown:
+            raise ValueError(f"unknown physical parameters {sorted(unknown)}; known: {names}")
+        self._theta = np.array([params.get(n, t) for n, t in zip(names, self._theta)], dtype=float)
+
+    def params(self) -> dict:
+        return {p.name: float(t) for p, t in zip(self.all_params(), self._theta)}
+
+    @property
+    def n_params(self) -> int:
+        return len(self._theta)
+
+    # ------------------------------------------------------------ dynamics
+
+    def predict(self, x, u, dt_s: float) -> np.ndarray:
+        """Next state for any dt_s [s] (continuous-time model); see :meth:`Model.predict`."""
+        x = np.asarray(x, dtype=float)
+        u = np.asarray(u, dtype=float)
+        n, h = self.options["substeps"], dt_s / self.options["substeps"]
+        if x.ndim == 1 and not self.terms:
+            xs, us = x.tolist(), u.tolist()
+            for _ in range(n):
+                xs = _step_scalar(xs, us, h, self._theta, self._scale, self._pb)
+            return np.array(xs)
+        single = x.ndim == 1
+        xt, ut = np.atleast_2d(x).T, np.atleast_2d(u).T
+        for _ in range(n):
+            xt = self._step_t(xt, ut, h, self._theta)
+        return xt.T[0] if single else xt.T
+
+    def _step_t(self, x, u, h, th):
+        """One step of h [s] on component-major arrays: x (6, n), u (3, n) -> (6, n)."""
+        p, v = x[:3], x[3:]
+        sin_a, lift, cent = _geometry_t(p, v, u, self._pb)
+        s = self._scale
+        a = th[0] * u + th[3] * lift + th[5] * cent
+        a[2] += th[4]
+        if self.terms:
+            named = dict(zip((q.name for q in self.all_params()), th))
+            for term in self.terms:
+                a += term.force(p.T, v.T, u.T, _term_params(term, named)).T
+        z = (s * h) * (th[1] * sin_a + th[2])
+        out = np.empty_like(x)
+        out[3:] = np.exp(-z) * v + (s * h) * phi1(z) * a
+        out[:3] = p + h * out[3:]
+        return out
+
+    # ------------------------------------------------------------ fitting
+
+    def fit(self, dataset) -> "PhysicalModel":
+        t0 = time.perf_counter()
+        self.dt_s = dataset.dt_s
+        self._refine(dataset, [self._initial_iv(dataset), self._initial_response(dataset)])
+        self.train_time_s = time.perf_counter() - t0
+        return self
+
+    def _regressors(self, p, v, vm, u):
+        """(n, 3, 6) columns of the base force: geometry from (p, v), drag at vm."""
+        sin_a, lift, cent = geometry(p, v, u, self._pb)
+        ez = np.zeros_like(p)
+        ez[:, 2] = 1.0
+        return np.stack([u, -sin_a[:, None] * vm, -vm, lift, ez, cent], axis=2)
+
+    def _initial_iv(self, dataset):
+        """Stage 1: the base force is linear in the six parameters; solve it by
+        instrumental variables on the one-step velocity change.
+
+        Regressors use the step's mean velocity (V_i + V_{i+1}) / 2, whose
+        measurement noise is shared with the target; the instruments are the same
+        columns built from V_{i-2}, whose noise is independent. Falls back to
+        ordinary least squares when there are too few such triples.
+        """
+        dt = dataset.dt_s
+        idx = dataset.pair_index()
+        idx_iv = idx[idx >= 2]
+        idx_iv = idx_iv[dataset.state_ok[idx_iv - 2] & dataset.step_ok[idx_iv - 2] & dataset.step_ok[idx_iv - 1]]
+        use_iv = len(idx_iv) >= 20 * len(BASE_PARAMS)
+        i = idx_iv if use_iv else idx
+        if len(i) < len(BASE_PARAMS):
+            raise UserError(f"physical fit: only {len(i)} valid one-step pairs in the logs; need more data")
+        p, v, u, vn = dataset.x[i, :3], dataset.x[i, 3:], dataset.u[i], dataset.x[i + 1, 3:]
+        y = (vn - v) / (dt * self._scale)  # uN
+        if self.terms:
+            named = dict(zip((q.name for q in self.all_params()), self._theta))
+            for term in self.terms:
+                y = y - term.force(p, v, u, _term_params(term, named))
+        A = self._regressors(p, v, 0.5 * (v + vn), u).reshape(-1, 6)
+        norms = np.linalg.norm(A, axis=0)
+        norms[norms == 0] = 1.0
+        if use_iv:
+            vl = dataset.x[i - 2, 3:]
+            Z = self._regressors(p, vl, vl, u).reshape(-1, 6) / norms
+            sol = np.linalg.lstsq(Z.T @ (A / norms), Z.T @ y.reshape(-1), rcond=None)[0] / norms
+        else:
+            sol = np.linalg.lstsq(A / norms, y.reshape(-1), rcond=None)[0] / norms
+        theta = self._theta.copy()
+        theta[:6] = sol
+        self._report(f"physical: stage 1 ({'IV' if use_iv else 'LS'}) on {len(i)} pairs")
+        return self._clip(theta)
+
+    def _initial_response(self, dataset, taus=np.geomspace(0.02, 1.0, 13)):
+        """Stage 1b, a robust fallback: a first-order velocity response to the commands.
+
+        For each candidate time constant tau, V_i (noise only on this side) is
+        regressed on the exponentially filtered command and a vertical offset:
+        V = g u_bar + f z_hat. The best tau gives Cd1 = m / (1000 tau),
+        k = g Cd1, Fvs = f Cd1; the other parameters start at zero.
+        """
+        from scipy.signal import lfilter
+
+        ok = dataset.state_ok
+        ok[0] = False
+        u = np.nan_to_num(dataset.u)
+        V = dataset.x[ok, 3:]
+        best = None
+        for tau in taus:
+            a = math.exp(-dataset.dt_s / tau)
+            u_bar = lfilter([0.0, 1.0 - a], [1.0, -a], u, axis=0)[ok]
+            ez = np.zeros_like(u_bar)
+            ez[:, 2] = 1.0
+            A = np.stack([u_bar.reshape(-1), ez.reshape(-1)], axis=1)
+            sol, res, *_ = np.linalg.lstsq(A, V.reshape(-1), rcond=None)
+            sse = float(res[0]) if len(res) else float(np.sum((A @ sol - V.reshape(-1)) ** 2))
+            if best is None or sse < best[0]:
+                best = (sse, tau, sol)
+        _, tau, (g, f) = best
+        cd1 = self.options["mass_mg"] / (1000.0 * tau)
+        theta = self._theta.copy()
+        theta[:6] = [g * cd1, 0.0, cd1, 0.0, f * cd1, 0.0]
+        self._report(f"physical: stage 1b (first-order response) tau = {tau:.3f} s")
+        return self._clip(theta)
+
+    def _clip(self, theta):
+        ps = self.all_params()
+        lo = np.array([p.lo for p in ps])
+        hi = np.array([p.hi for p in ps])
+        span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+        return np.clip(theta, lo + 1e-9 * span, hi - 1e-9 * span)
+
+    def _refine(self, dataset, starts):
+        """Stage 2: multi-step position error over windows, all parameters jointly.
+
+        Each window's initial position and velocity are nuisance unknowns,
+        eliminated by variable projection (a small linear solve per window on
+        the rollout's sensitivity to them, re-linearised ``vp_passes`` times):
+        starting from the measured, noisy V_i biases the parameters towards
+        over-damping. ``vp_passes=0`` gives the paper's objective (rollouts
+        from the measured states), which scores better on noisy one-step and
+        short-rollout comparisons but does not recover the true parameters.
+        """
+        k = int(self.options["horizon"])
+        idx = dataset.window_index(k)
+        if len(idx) < 2 * self.n_params:
+            self._report("physical: too few multi-step windows without gaps; keeping the stage 1 fit")
+            self.fit_info = {"windows": int(len(idx))}
+            self._theta = starts[0]
+            return
+        m = int(self.options["max_windows"])
+        if len(idx) > m:
+            idx = np.sort(np.random.default_rng(self.options["seed"]).choice(idx, m, replace=False))
+        X0, U, P = dataset.windows(k, idx)
+        w, h, dv = len(idx), dataset.dt_s, 1.0
+        eye = dv * np.eye(6)[3:]  # velocity perturbations (3, 6)
+        Us = np.ascontiguousarray(np.concatenate([U] * 4).transpose(1, 2, 0))  # (k, 3, 4w)
+        target = P.reshape(w, 3 * k)
+        s_p = np.tile(np.eye(3), (k, 1))  # sensitivity to the initial position: identity at every step
+        ridge = np.diag([1e-6] * 3 + [1e-6 * h * h] * 3)
+        passes = int(self.options["vp_passes"])
+        state = {"n": 0}
+
+        def residual(theta):
+            state["n"] += 1
+            if state["n"] % 20 == 0:
+                self._report(f"physical: stage 2, {state['n']} evaluations")
+            if passes == 0:  # the paper's objective: rollouts from the measured states
+                x = X0.T.copy()
+                out = np.empty((k, 3, w))
+                for j in range(k):
+                    x = self._step_t(x, Us[j, :, :w], h, theta)
+                    out[j] = x[:3]
+                return (out.reshape(3 * k, w).T - target).reshape(-1)
+            x0 = X0
+            for _ in range(passes):
+                x = np.concatenate([x0] + [x0 + e for e in eye]).T.copy()  # (6, 4w)
+                out = np.empty((k, 3, 4 * w))
+                for j in range(k):
+                    x = self._step_t(x, Us[j], h, theta)
+                    out[j] = x[:3]
+                out = out.reshape(k * 3, 4, w).transpose(1, 2, 0)  # (4, w, 3k), step-major
+                r = out[0] - target
+                S = np.empty((w, 3 * k, 6))
+                S[:, :, :3] = s_p
+                S[:, :, 3:] = ((out[1:] - out[0]) / dv).transpose(1, 2, 0)
+                G = np.einsum("wki,wkj->wij", S, S) + ridge
+                d = np.linalg.solve(G, -np.einsum("wki,wk->wi", S, r)[..., None])[..., 0]
+                x0 = x0 + d
+            return (r + np.einsum("wki,wi->wk", S, d)).reshape(-1)
+
+        ps = self.all_params()
+        lo = np.array([p.lo for p in ps])
+        hi = np.array([p.hi for p in ps])
+        costs = [float(np.sum(residual(t) ** 2)) for t in starts]
+        start = starts[int(np.argmin(costs))]
+        r0 = residual(start)
+        res = least_squares(residual, start, bounds=(lo, hi), x_scale="jac", method="trf",
+                            max_nfev=int(self.options["max_nfev"]), ftol=1e-6, xtol=1e-6)
+        self._theta = res.x
+        rms0 = float(np.sqrt(np.mean(r0**2)))
+        rms1 = float(np.sqrt(np.mean(res.fun**2)))
+        self.fit_info = {"windows": int(w), "horizon": k, "evaluations": state["n"], "start": int(np.argmin(costs)),
+                         "rms_mm_before": rms0, "rms_mm_after": rms1, "status": int(res.status)}
+        self._report(f"physical: stage 2 on {w} windows x {k} steps: "
+                     f"rms {rms0:.3f} -> {rms1:.3f} mm ({state['n']} evaluations)")
+
+    # ------------------------------------------------------------ files
+
+    def _state(self):
+        meta = {"params": self.params(), "terms": [t.name for t in self.terms], "fit_info": self.fit_info}
+        return meta, {"theta": self._theta}
+
+    def _restore(self, meta, arrays):
+        if meta["terms"]:
+            from cosim.plugins import registry
+
+            known = registry("effect")
+            missing = [n for n in meta["terms"] if n not in known]
+            if missing:
+                raise UserError(f"physical model uses effects {missing} that are not registered")
+            self.terms = [known[n] for n in meta["terms"]]
+        self._theta = np.asarray(arrays["theta"], dtype=float)
+        self.fit_info = meta.get("fit_info", {})
+
+
+def _step_scalar(x, u, h, th, s, pb):
+    """:meth:`PhysicalModel._step_t` for one sample in plain floats (lists of 6 and 3)."""
+    px, py, pz, vx, vy, vz = x
+    wx, wy, wz = u
+    vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+    wn = math.sqrt(wx * wx + wy * wy + wz * wz)
+    ax, ay, az = th[0] * wx, th[0] * wy, th[0] * wz + th[4]
+    sin_a = 0.0
+    if vn * wn > 1e-12:
+        cos = min(1.0, max(-1.0, (wx * vx + wy * vy + wz * vz) / (vn * wn)))
+        sin_a = math.sqrt(1.0 - cos * cos)
+        f1, f2 = th[3] * 2.0 * cos * vn / wn, th[3] * 2.0 * cos * cos
+        ax, ay, az = ax + f1 * wx - f2 * vx, ay + f1 * wy - f2 * vy, az + f1 * wz - f2 * vz
+    pn = math.sqrt(px * px + py * py + pz * pz)
+    if pn > 1e-12:
+        c = -th[5] * math.sin(math.pi * pn / pb) / pn
+        ax, ay, az = ax + c * px, ay + c * py, az + c * pz
+    z = s * h * (th[1] * sin_a + th[2])
+    e = math.exp(-z)
+    g = s * h * ((1.0 - 0.5 * z) if abs(z) < 1e-6 else -math.expm1(-z) / z)
+    vx, vy, vz = e * vx + g * ax, e * vy + g * ay, e * vz + g * az
+    return [px + h * vx, py + h * vy, pz + h * vz, vx, vy, vz]
+
+
+def synthetic_plant(richer: bool = True) -> PhysicalModel:
+    """The plant of :mod:`cosim.identify.synthetic` logs (tests, benchmarks, demos).
+
+    The paper's model with :data:`~cosim.identify.synthetic.TRUE_PARAMS`; if
+    ``richer``, plus quadratic drag (c = 0.0015 uN s^2/mm^2) and 4 substeps
+    per period, so no fitted model is exactly right.
+    """
+    from cosim.identify.synthetic import TRUE_PARAMS
+    from cosim.identify.terms import quadratic_drag
+
+    if richer:
+        return PhysicalModel.from_params({**TRUE_PARAMS, "quadratic_drag.c": 0.0015}, substeps=4,
+                                         terms=[quadratic_drag()])
+    return PhysicalModel.from_params(TRUE_PARAMS)

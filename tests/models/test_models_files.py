@@ -1,0 +1,49 @@
+"""Model files: round trip for every built-in model, clear errors for the wrong kind or version."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.errors import UserError
+from cosim.identify.model import load_model
+from cosim.plugins import registry
+from cosim_plugins.models.mlp import MLPModel
+from cosim_plugins.models.physical import PhysicalModel
+from cosim_plugins.models.sindy import SindyLinear, SindyNonlinear
+
+QUICK = {"physical": dict(max_windows=200, max_nfev=3), "mlp": dict(epochs=2)}
+
+
+def test_registered_models():
+    assert {"physical", "sindy-linear", "sindy-nonlinear", "mlp"} <= set(registry("model"))
+
+
+@pytest.mark.parametrize("cls", [PhysicalModel, SindyLinear, SindyNonlinear, MLPModel], ids=lambda c: c.name)
+def test_round_trip_gives_identical_predictions(rich_data, tmp_path, cls):
+    train, test = rich_data
+    model = cls(**QUICK.get(cls.name, {})).fit(train)
+    path = model.save(tmp_path / f"{cls.name}.npz")
+    loaded = load_model(path)
+    assert type(loaded) is cls
+    X, U, _ = test.pairs()
+    np.testing.assert_array_equal(loaded.predict(X, U, 0.02), model.predict(X, U, 0.02))
+    np.testing.assert_array_equal(loaded.predict(X[0], U[0], 0.02), model.predict(X[0], U[0], 0.02))
+    assert loaded.params() == model.params() and loaded.n_params == model.n_params
+    assert loaded.train_time_s == model.train_time_s
+
+
+def test_wrong_kind_version_or_file(rich_data, tmp_path, monkeypatch):
+    train, _ = rich_data
+    path = SindyLinear().fit(train).save(tmp_path / "lin.npz")
+    with pytest.raises(UserError, match="holds a 'sindy-linear' model, not 'mlp'"):
+        MLPModel.load(path)
+    monkeypatch.setattr(SindyLinear, "version", 2)
+    with pytest.raises(UserError, match="format version 1 is not supported .*reads version 2"):
+        SindyLinear.load(path)
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(UserError, match="is not a cosim model file"):
+        load_model(junk)
+    with pytest.raises(UserError, match="does not exist"):
+        load_model(tmp_path / "missing.npz")

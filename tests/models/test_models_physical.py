@@ -1,0 +1,103 @@
+"""The physical model: integration, parameter recovery, extra force terms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosim.errors import UserError
+from cosim.identify import synthetic as syn
+from cosim.identify.model import load_model
+from cosim.identify.terms import ForceTerm, Param, quadratic_drag
+from cosim_plugins.models.physical import PhysicalModel, forces, synthetic_plant
+
+
+def _random_states(n, seed=0):
+    rng = np.random.default_rng(seed)
+    x = np.column_stack([rng.uniform(-50, 50, (n, 3)), rng.normal(0, 20, (n, 3))])
+    return x, rng.normal(0, 10, (n, 3))
+
+
+def test_predict_single_matches_batch_and_special_cases():
+    model = synthetic_plant(richer=False)
+    x, u = _random_states(6)
+    u[0] = 0.0  # no command: alpha undefined, no lift
+    x[1, 3:] = 0.0  # at rest
+    x[2, :3] = 0.0  # at the centre: no centripetal direction
+    batch = model.predict(x, u, 0.02)
+    single = np.array([model.predict(x[i], u[i], 0.02) for i in range(len(x))])
+    np.testing.assert_allclose(single, batch, rtol=1e-12, atol=1e-12)
+    assert np.all(np.isfinite(batch))
+    # the backward-difference velocity of the model's own step is its new velocity
+    np.testing.assert_allclose((batch[:, :3] - x[:, :3]) / 0.02, batch[:, 3:], rtol=1e-10)
+
+
+def test_acceleration_matches_the_force_equations():
+    model = synthetic_plant(richer=False)
+    x, u = _random_states(50, seed=1)
+    dt = 1e-7
+    acc = (model.predict(x, u, dt)[:, 3:] - x[:, 3:]) / dt
+    f = forces(x[:, :3], x[:, 3:], u, syn.TRUE_PARAMS)
+    np.testing.assert_allclose(acc, 1000.0 * f / 12.4, rtol=1e-4, atol=1e-3)
+
+
+def test_stiff_drag_is_stable():
+    model = PhysicalModel.from_params({"k": 100.0, "Cd1": 100.0, "Cd0": 0.0})  # lambda dt ~ 1.6e5
+    x = np.array([[0.0, 0.0, 0.0, 500.0, 0.0, 0.0]])
+    u = np.array([[2.0, 0.0, 0.0]])
+    traj = model.rollout(x, u[:, None].repeat(10, axis=1), 0.02)
+    assert np.all(np.isfinite(traj))
+    np.testing.assert_allclose(traj[0, -1, 3:], [2.0, 0.0, 0.0], atol=1e-6)  # terminal velocity k u / Cd1
+
+
+def test_fit_recovers_known_parameters(make_dataset, tmp_path):
+    """Data made by the physical model itself (camera noise 0.03 mm, gaps, outliers, repeats)."""
+    plant = synthetic_plant(richer=False)
+    ds = make_dataset(tmp_path, plant.predict, 1500, seed=5, noise_mm=0.03)
+    model = PhysicalModel(max_windows=1500).fit(ds)
+    for name, true in syn.TRUE_PARAMS.items():
+        assert model.params()[name] == pytest.approx(true, rel=0.05), name
+    assert model.n_params == 6
+    assert model.train_time_s > 0
+
+
+def test_extra_term_is_fitted_jointly(make_dataset, tmp_path):
+    truth = {**syn.TRUE_PARAMS, "quadratic_drag.c": 0.0015}
+    plant = PhysicalModel.from_params(truth, terms=[quadratic_drag()])
+    ds = make_dataset(tmp_path, plant.predict, 1000, seed=6, noise_mm=0.03)
+    model = PhysicalModel(max_windows=1500, terms=[quadratic_drag(init=0.001)]).fit(ds)
+    assert model.n_params == 7
+    assert model.params()["quadratic_drag.c"] == pytest.approx(0.0015, rel=0.1)
+    assert model.params()["Cd1"] == pytest.approx(truth["Cd1"], rel=0.05)
+
+
+def test_custom_term_and_unregistered_term_on_load(tmp_path):
+    push = ForceTerm("push", (Param("fx", 0.2, -1.0, 1.0, "uN"),),
+                     lambda p, v, u, prm: np.broadcast_to([prm["fx"], 0.0, 0.0], p.shape))
+    model = PhysicalModel.from_params({**syn.TRUE_PARAMS, "push.fx": 0.5}, terms=[push])
+    assert "push.fx" in model.params()
+    x, u = _random_states(3)
+    moved = model.predict(x, u, 0.02)
+    model.set_params({"push.fx": 0.0})
+    assert np.all(moved[:, 3] > model.predict(x, u, 0.02)[:, 3])
+    model.save(tmp_path / "m.npz")
+    with pytest.raises(UserError, match="effects \\['push'\\] that are not registered"):
+        load_model(tmp_path / "m.npz")
+    with pytest.raises(ValueError, match="unknown physical parameters"):
+        model.set_params({"nope": 1.0})
+
+
+def test_fast_single_step():
+    import time
+
+    model = synthetic_plant(richer=False)
+    x, u = _random_states(1)
+    x, u = x[0], u[0]
+    t0 = time.perf_counter()
+    for _ in range(2000):
+        model.predict(x, u, 0.02)
+    per_call = (time.perf_counter() - t0) / 2000
+    assert per_call < 200e-6  # budget 50 us; loose here because CI machines are shared
+    assert math.isfinite(per_call)
