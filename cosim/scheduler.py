@@ -148,11 +148,17 @@ class RemoteGroup:
         the request is sent again to those that have not answered within 0.5 s.
         """
         pending, got = set(names), {}
+
+        def answered(name: str, reply: dict) -> None:
+            pending.discard(name)
+            got[name] = reply
+            if progress is not None:  # the first unfinished in wiring order is the one to blame
+                progress.pending = tuple(n for n in progress.pending if n in pending)
+
         for name in list(pending):  # replies that came ahead of their turn
             reply = self._early.pop((name, tick, phase), None)
             if reply is not None:
-                pending.discard(name)
-                got[name] = reply
+                answered(name, reply)
         while pending:
             if resend is None:
                 sample = self._replies.recv()
@@ -168,12 +174,9 @@ class RemoteGroup:
             if not reply.get("ok", False):
                 raise RunError(name, reply.get("error", "failed"))
             if name in pending and reply.get("tick") == tick and reply.get("phase") == phase:
-                pending.discard(name)
-                got[name] = reply
+                answered(name, reply)
             elif reply.get("tick", -1) > tick:  # a node already working on a later tick
                 self._early[(name, reply["tick"], reply.get("phase"))] = reply
-        if progress is not None:  # the first unfinished in wiring order is the one to blame
-            progress.pending = tuple(n for n in progress.pending if n in pending)
         return got
 
     def poll_reply(self, timeout_s: float) -> dict | None:
