@@ -47,6 +47,7 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_node)
 
     add_dataset_command(sub)
+    add_reproduce_command(sub)
 
 
 def cmd_run(args) -> int:
@@ -122,7 +123,7 @@ def cmd_node(args) -> int:
 
 
 def add_dataset_command(sub) -> None:
-    p = sub.add_parser("dataset", help="generate (or reuse) the paper's 12 + 1 logs and print their paths")
+    p = sub.add_parser("dataset", help="generate (or reuse) the paper's training, test and validation logs")
     p.add_argument("--quick", action="store_true", help="40 s runs instead of 290 s each")
     p.add_argument("--out", type=Path, default=None, help="folder (default: the cache, $COSIM_CACHE or ./cache)")
     p.add_argument("--force", action="store_true", help="regenerate even if the cache is current")
@@ -133,10 +134,28 @@ def cmd_dataset(args) -> int:
     from cosim.dataset import ensure_dataset
 
     ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force)
-    print(f"training ({len(ds.training)} logs):")
-    for f in ds.training:
-        print(f"  {f}")
-    print("validation:")
-    for f in ds.validation:
-        print(f"  {f}")
+    for split in ("training", "test", "validation"):
+        files = getattr(ds, split)
+        print(f"{split} ({len(files)} logs):")
+        for f in files:
+            print(f"  {f}")
+    return 0
+
+
+def add_reproduce_command(sub) -> None:
+    p = sub.add_parser("reproduce", help="regenerate every table and figure of the paper in simulation")
+    p.add_argument("--out", type=Path, required=True, help="report folder")
+    p.add_argument("--quick", action="store_true", help="shortened experiments (a few minutes in all)")
+    p.set_defaults(func=cmd_reproduce)
+
+
+def cmd_reproduce(args) -> int:
+    from cosim.report_format import filled
+    from cosim.reproduce import reproduce
+
+    report = reproduce(args.out, quick=args.quick)
+    print(f"report: {args.out / 'report.md'} (and report.html, report.json); {report['wall_time_s']:.0f} s")
+    empty = filled((args.out / "report.md").read_text())
+    if empty:
+        print(f"warning: {len(empty)} table rows have missing figures", file=sys.stderr)
     return 0

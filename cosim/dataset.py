@@ -1,8 +1,11 @@
-"""The paper's dataset: 12 training logs + 1 validation log, generated on demand and cached.
+"""The paper's dataset: 12 training, 12 test and 1 validation log, generated on demand and cached.
 
 ``scenarios/paper/training.yaml`` (a 12-run sweep: circle and racetrack at six
-angles) and ``scenarios/paper/validation.yaml`` (the rotating circle) are run
-once and their ``log.csv`` files kept under ``<cache>/paper_dataset``. The
+angles) makes the training logs; the same sweep with another seed and 60 s
+per case makes the test logs (unseen noise and trajectories of the same
+paths, our analog of the paper's 80/20 test split); and
+``scenarios/paper/validation.yaml`` (the rotating circle) the validation log.
+They are run once and their ``log.csv`` files kept under ``<cache>/paper_dataset``. The
 cache is reused while the scenario files, the plant FMU and the length
 (full or ``quick``) are unchanged; otherwise it is regenerated.
 The cache folder is ``$COSIM_CACHE`` or ``./cache``.
@@ -22,6 +25,9 @@ REPO = Path(__file__).resolve().parents[1]
 PAPER_SCENARIOS = REPO / "scenarios" / "paper"
 #: Simulated seconds per case with ``quick`` (the full cases last 290 s, 14,500 rows).
 QUICK_DURATION_S = 40.0
+#: Simulated seconds per test case (full / quick) and the test set's seed.
+TEST_DURATION_S = (60.0, 20.0)
+TEST_SEED = 300
 
 
 def cache_dir() -> Path:
@@ -31,12 +37,9 @@ def cache_dir() -> Path:
 @dataclass
 class PaperDataset:
     training: list[Path]
+    test: list[Path]
     validation: list[Path]
     folder: Path
-
-    @property
-    def all(self) -> list[Path]:
-        return [*self.training, *self.validation]
 
 
 def _fingerprint(quick: bool) -> str:
@@ -52,27 +55,30 @@ def _fingerprint(quick: bool) -> str:
 
 def ensure_dataset(quick: bool = False, folder: Path | None = None, force: bool = False,
                    progress: bool = True) -> PaperDataset:
-    """The cached dataset, generated first if missing or stale (with progress on stderr)."""
+    """The cached dataset; splits that are missing or stale are generated first (progress on stderr)."""
+    from cosim.runner import RunRequest, run
+
     folder = Path(folder) if folder else cache_dir() / ("paper_dataset_quick" if quick else "paper_dataset")
     manifest = folder / "manifest.json"
     stamp = _fingerprint(quick)
-    if not force and manifest.is_file():
-        data = json.loads(manifest.read_text())
-        files = [folder / f for f in data.get("training", []) + data.get("validation", [])]
-        if data.get("fingerprint") == stamp and all(f.is_file() for f in files):
-            return PaperDataset([folder / f for f in data["training"]], [folder / f for f in data["validation"]],
-                                folder)
-    from cosim.runner import RunRequest, run
-
-    print(f"generating the paper dataset in {folder} (12 training + 1 validation runs)", file=sys.stderr)
-    if folder.exists():
-        shutil.rmtree(folder)
-    extra = [f"duration_s={QUICK_DURATION_S}"] if quick else []
-    runs = folder / "runs"
-    run(RunRequest(PAPER_SCENARIOS / "training.yaml", runs / "training", extra, False, progress))
-    run(RunRequest(PAPER_SCENARIOS / "validation.yaml", runs / "validation", extra, False, progress))
-    training = sorted(p.relative_to(folder) for p in (runs / "training" / "runs").glob("*/log.csv"))
-    validation = [(runs / "validation" / "log.csv").relative_to(folder)]
-    manifest.write_text(json.dumps({"fingerprint": stamp, "training": [str(p) for p in training],
-                                    "validation": [str(p) for p in validation]}, indent=2))
-    return PaperDataset([folder / p for p in training], [folder / p for p in validation], folder)
+    data = json.loads(manifest.read_text()) if manifest.is_file() and not force else {}
+    if data.get("fingerprint") != stamp:
+        if folder.exists():
+            shutil.rmtree(folder)
+        data = {"fingerprint": stamp}
+    duration = [f"duration_s={QUICK_DURATION_S}"] if quick else []
+    plans = {
+        "training": (PAPER_SCENARIOS / "training.yaml", duration),
+        "test": (PAPER_SCENARIOS / "training.yaml", [f"duration_s={TEST_DURATION_S[quick]}", f"seed={TEST_SEED}"]),
+        "validation": (PAPER_SCENARIOS / "validation.yaml", duration),
+    }
+    for split, (scenario, overrides) in plans.items():
+        if data.get(split) and all((folder / f).is_file() for f in data[split]):
+            continue
+        print(f"generating the paper dataset's {split} logs in {folder}", file=sys.stderr)
+        out = folder / "runs" / split
+        run(RunRequest(scenario, out, overrides, False, progress))
+        logs = sorted(out.glob("runs/*/log.csv")) or [out / "log.csv"]
+        data[split] = [str(f.relative_to(folder)) for f in logs]
+        manifest.write_text(json.dumps(data, indent=2))
+    return PaperDataset(*[[folder / f for f in data[s]] for s in plans], folder)

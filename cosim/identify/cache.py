@@ -35,18 +35,22 @@ def ensure_model(kind: str, quick: bool | None = None, seed: int = 0) -> Path:
     from cosim.identify.fit import fit_models, resolve_names
 
     resolve_names(kind)  # unknown kinds fail here, listing the known ones
-    dataset_files = ensure_dataset(quick=quick)
-    stamp = json.loads((dataset_files.folder / "manifest.json").read_text())["fingerprint"]
-    folder = cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}"
-    path = folder / f"{kind}.npz"
+    path = model_path(kind, quick, seed)
     if path.is_file():
         return path
-    print(f"training the {kind} model on the paper dataset (cached in {folder})", file=sys.stderr)
-    dataset = Dataset.from_paths(dataset_files.training)
+    print(f"training the {kind} model on the paper dataset (cached in {path.parent})", file=sys.stderr)
+    dataset = Dataset.from_paths(ensure_dataset(quick=quick).training)
     model = fit_models(dataset, [kind], seed=seed, progress=_progress)[kind]
-    folder.mkdir(parents=True, exist_ok=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
     model.save(path)
     return path
+
+
+def model_path(kind: str, quick: bool, seed: int = 0) -> Path:
+    """Where the cached ``kind`` model for the current paper dataset lives (generating the dataset if needed)."""
+    dataset = ensure_dataset(quick=quick)
+    stamp = json.loads((dataset.folder / "manifest.json").read_text())["fingerprint"]
+    return cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}" / f"{kind}.npz"
 
 
 def resolve_model(spec: str, base_dir: Path | None = None, quick: bool | None = None):

@@ -4,13 +4,16 @@ One-step: from each valid measured state x_i and command u_i predict
 P_{i+1}; report the per-axis mean absolute error and the norm (mean of the
 per-sample Euclidean errors) in mm. Open-loop rollouts over 0.1 s, 0.42 s and
 1.0 s: from the measured state feed the recorded commands and compare the
-final position with the measurement; windows with any gap are skipped.
+final position with the measurement; windows with any gap are skipped, and
+windows where the model's prediction blows up (non-finite) are counted as
+``diverged`` and left out of the error.
 
 JSON::
 
     {"models": {NAME: {"one_step_mm": {"x", "y", "z", "norm"},
                        "rollout_mm": {"0.1": norm, "0.42": norm, "1.0": norm},
-                       "rollout_detail": {"0.1": {"x", "y", "z", "norm", "steps", "windows"}, ...},
+                       "rollout_detail": {"0.1": {"x", "y", "z", "norm", "steps", "windows",
+                                                  "diverged"}, ...},
                        "n_pairs": N}},
      "split": label or null, "logs": [...]}
 """
@@ -56,8 +59,9 @@ def rollout_end(model, dataset, steps: int) -> tuple[dict, np.ndarray, np.ndarra
             x = model.predict(x, dataset.u[part + j], dataset.dt_s)
         ends[s : s + CHUNK] = x[:, :3]
     meas = dataset.p[idx + steps]
-    err = _errors(ends, meas)
-    err.update(steps=int(steps), windows=int(len(idx)))
+    finite = np.all(np.isfinite(ends), axis=1)
+    err = _errors(ends[finite], meas[finite])
+    err.update(steps=int(steps), windows=int(len(idx)), diverged=int((~finite).sum()))
     return err, ends, idx
 
 

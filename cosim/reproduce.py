@@ -1,0 +1,136 @@
+"""``cosim reproduce``: every table and figure of the paper, in simulation, next to the paper's.
+
+Steps: generate the paper dataset (12 training, 12 test, 1 validation logs),
+train the four models (Table II), compare them with the measurements
+(Table III), real-time prediction on the rotating circle (Table IV), the
+feedback-interval sweep (Fig. 6), and path following with PI, MRAC and MPC on
+the racetrack and the helix + racetrack (Fig. 3, Fig. 7, Sec. III-E).
+``--quick`` shortens every experiment (a few minutes in all).
+
+Writes ``DIR/report.md``, ``DIR/report.html``, ``DIR/report.json``, the plots,
+and every run's folder (with its ``recording.rrd``) under ``DIR/runs``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from cosim import report_format
+from cosim.dataset import REPO, ensure_dataset
+
+SCENARIOS = REPO / "scenarios"
+MODELS = ("physical", "sindy-nonlinear", "sindy-linear", "mlp")
+
+#: The paper's figures (Zhao et al.), by table / figure.
+PAPER: dict[str, Any] = {
+    "table2": {"physical": (1696, 6), "sindy-nonlinear": (20.64, 330), "sindy-linear": (2.10, 60), "mlp": (2760, 276)},
+    "table3": {  # split -> model -> (x, y, z, norm) [mm]
+        "training": {"physical": (0.30, 0.30, 0.17, 0.54), "sindy-nonlinear": (0.20, 0.25, 0.18, 0.45),
+                     "sindy-linear": (0.46, 0.46, 0.29, 0.83), "mlp": (0.32, 0.36, 0.19, 0.52)},
+        "test": {"physical": (0.40, 0.40, 0.17, 0.68), "sindy-nonlinear": (0.20, 0.25, 0.18, 0.45),
+                 "sindy-linear": (0.47, 0.48, 0.29, 0.86), "mlp": (0.35, 0.39, 0.19, 0.56)},
+        "validation": {"physical": (0.21, 0.23, 0.19, 0.45), "sindy-nonlinear": (0.34, 0.35, 0.33, 0.70),
+                       "sindy-linear": (0.57, 0.65, 0.34, 1.03), "mlp": (0.34, 0.46, 0.25, 0.63)},
+    },
+    "table4": {"physical": (0.24, 0.34, 0.31, 0.62), "sindy-nonlinear": (0.42, 0.46, 0.52, 0.94),
+               "sindy-linear": (0.48, 0.54, 0.40, 0.95), "mlp": (0.69, 0.55, 0.42, 1.02)},
+    "fig6": {"none": (0.180, 9.0), "kf": (0.420, 4.6)},  # largest interval [s], tracking error [mm]
+    "paths": {"racetrack": {"pi": (2.68, 1.98), "mpc": (2.7, 2.2)}, "helix": {"mpc": (3.3, 1.9)}},
+    "mpc_solve_ms": (10.7, 5.3),
+}
+
+#: Quick mode: simulated seconds per run and the intervals of the feedback sweep.
+QUICK = {"duration_s": 20.0, "intervals": [0.02, 0.18, 0.42, 1.0]}
+
+
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def _scenario_copy(name: str, out_dir: Path, quick: bool) -> Path:
+    """The scenario as run: shortened in quick mode, written next to the results."""
+    data = yaml.safe_load((SCENARIOS / name).read_text())
+    if quick:
+        data["duration_s"] = min(float(data["duration_s"]), QUICK["duration_s"])
+        key = "components.camera.params.interval_s"
+        if key in data.get("sweep", {}):
+            data["sweep"][key] = QUICK["intervals"]
+    path = out_dir / "scenarios" / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _run_scenario(name: str, out_dir: Path, quick: bool) -> dict:
+    from cosim.runner import RunRequest, run
+
+    scenario = _scenario_copy(name, out_dir, quick)
+    return run(RunRequest(scenario, out_dir / "runs" / Path(name).stem, [], False, progress=True))
+
+
+def _train(dataset, out_dir: Path, quick: bool) -> dict:
+    """Fit the four models (timed: Table II) and put them where scenarios look for them."""
+    from cosim.identify.cache import model_path
+    from cosim.identify.dataset import Dataset
+    from cosim.identify.fit import fit_models, save_models, summarise
+
+    data = Dataset.from_paths(dataset.training)
+    models = fit_models(data, list(MODELS), seed=0, progress=lambda m: _say(f"  {m}"))
+    summary = summarise(models, data, seed=0)
+    save_models(models, summary, out_dir / "models")
+    for name, model in models.items():
+        path = model_path(name, quick)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        model.save(path)
+    return summary
+
+
+def _compare(dataset, out_dir: Path) -> dict:
+    from cosim.identify.compare import compare
+    from cosim.identify.dataset import Dataset
+    from cosim.identify.fit import load_models
+
+    models = load_models(out_dir / "models")
+    return {split: compare(models, Dataset.from_paths(getattr(dataset, split)))
+            for split in ("training", "test", "validation")}
+
+
+def reproduce(out_dir: Path, quick: bool = False) -> dict:
+    """Run everything; returns the report dict (also written to ``out_dir``)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if quick:
+        os.environ["COSIM_DATASET"] = "quick"  # on-demand models in the scenarios use the quick data
+    wall0 = time.perf_counter()
+    timings: dict[str, float] = {}
+    results: dict[str, Any] = {}
+    steps = [
+        ("dataset", lambda: ensure_dataset(quick=quick)),
+        ("table2", lambda: _train(results["dataset"], out_dir, quick)),
+        ("table3", lambda: _compare(results["dataset"], out_dir)),
+        ("table4", lambda: _run_scenario("realtime_prediction.yaml", out_dir, quick)),
+        ("fig6", lambda: _run_scenario("feedback_sweep.yaml", out_dir, quick)),
+        ("racetrack", lambda: _run_scenario("controllers_racetrack.yaml", out_dir, quick)),
+        ("helix", lambda: _run_scenario("controllers_helix.yaml", out_dir, quick)),
+    ]
+    for i, (key, step) in enumerate(steps, 1):
+        _say(f"[{i}/{len(steps)}] {key} ...")
+        t0 = time.perf_counter()
+        results[key] = step()
+        timings[key] = round(time.perf_counter() - t0, 2)
+    results["dataset"] = {s: [str(p) for p in getattr(results["dataset"], s)]
+                          for s in ("training", "test", "validation")}
+    report = {"quick": quick, "wall_time_s": round(time.perf_counter() - wall0, 1), "step_time_s": timings,
+              "paper": PAPER, "ours": results}
+    (out_dir / "report.json").write_text(json.dumps(report, indent=2, default=str) + "\n")
+    markdown = report_format.markdown(report)
+    (out_dir / "report.md").write_text(markdown)
+    (out_dir / "report.html").write_text(report_format.html(markdown, title="Reproduction report"))
+    return report
