@@ -2,8 +2,12 @@
 
 from cosim import hookimpl
 from cosim_plugins.controllers.pi import PIController
+from cosim_plugins.controllers.mpc import MPCController
+from cosim_plugins.controllers.mrac import MRACController
 
 
 @hookimpl
 def cosim_register_components(register):
     register("controller.pi", PIController)
+    register("controller.mrac", MRACController)
+    register("controller.mpc", MPCController)

@@ -1,0 +1,220 @@
+"""``controller.mpc``: model predictive path following (paper Sec. II-D, III-E, Eq. 15, Table V).
+
+Every control period the controller
+
+1. forms the state ``x = [p mm, v mm/s]`` from the estimator's position and
+   velocity (SI on the bus, converted to the model's units);
+2. builds the reference positions ``r_1 .. r_N`` [mm] from the shared pure
+   pursuit (look-ahead 9 mm, gain 0.001 s; see ``reference`` below);
+3. solves Eq. 15 (see :mod:`cosim_plugins.controllers.mpc_qp`) for the plan
+   of normalised commands ``u_k = omega_Hz / f_max_hz`` (element-wise, so
+   ``|u| <= 1`` bounds each axis' spin-frequency component by ``f_max_hz``);
+4. applies u_0: clipped into the bounds (``|u_0| <= u_max``,
+   ``|u_0 - u_{-1}| <= du_max``; an OSQP iterate stopped at ``max_iter`` may
+   miss them by eps), then, as a safety saturation that keeps the bounds,
+   scaled down to ``|omega| / 2 pi <= f_norm_max_hz`` (step-out);
+   ``omega = 2 pi f_max_hz u_0`` [rad/s]. Without a position estimate, or if
+   OSQP fails, the command ramps to zero as fast as the Delta-u bound allows.
+
+Table V defaults: N = 5, Q = [3 3 3] on the position error [mm^-2],
+R = [1 1 1] on the command change, Ru = [1 1 1] on the command,
+bounds +-1 on u and Delta u, look-ahead 9 mm and gain 0.001.
+
+Model: ``model`` names a model file or kind (default the linear SINDy model,
+resolved with :func:`cosim.identify.cache.resolve_model`). A linear model
+gives (A, B, c) through ``linear_matrices()``; any other is linearised once at
+set-up with ``jacobians()`` around hover: p = 0 (tank centre), v = 0,
+u = ``hover_hz`` (default 0). The scenario step must be a multiple of the
+model's step (the matrices are composed over it).
+
+Reference (``reference``):
+
+* ``pursuit`` (default): points on the straight line from the swimmer to the
+  pure-pursuit target, ``r_k = p + min(k speed_mm_s dt, |target - p|) * dir``
+  (the pure-pursuit carrot walked at cruise speed);
+* ``path``: points along the path ahead of the closest path point,
+  ``r_k`` at arc length ``lead_mm + k * speed_mm_s * dt`` beyond it;
+* ``target``: the pure-pursuit target itself for every k.
+
+The pure-pursuit tracker is stepped every period in all three (its closest
+index orders the path following).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cosim import Component, ComponentError, Port
+from cosim.params import Param, read_params
+from cosim_plugins.controllers.common import CONTROLLER_OUTPUTS, SolveTimer
+from cosim_plugins.controllers.mpc_qp import CondensedMPC, CvxpyMPC, MPCSpec, clip_first
+from cosim_plugins.controllers.pure_pursuit import PurePursuit
+
+REFERENCES = ("path", "pursuit", "target")
+BACKENDS = ("osqp", "cvxpy")
+
+PARAMS = {
+    "model": Param("sindy-linear", "model file (.npz) or kind, see `cosim models`"),
+    "horizon": Param(5, "prediction horizon N [steps]", 1, 50),
+    "q": Param([3.0, 3.0, 3.0], "position error weights Q (x, y, z) [1/mm^2]"),
+    "r": Param([1.0, 1.0, 1.0], "command change weights R (x, y, z)"),
+    "ru": Param([1.0, 1.0, 1.0], "command weights Ru (x, y, z)"),
+    "f_max_hz": Param(20.0, "command normalisation: u = omega_Hz / f_max_hz [Hz]", 0.1, 100.0),
+    "u_max": Param(1.0, "bound on |u| per axis (normalised)", 0.0, 10.0),
+    "du_max": Param(1.0, "bound on |u_k - u_{k-1}| per axis (normalised)", 0.0, 10.0),
+    "f_norm_max_hz": Param(20.0, "safety cap on |omega| / 2 pi after the QP [Hz]", 0.0, 100.0),
+    "speed_mm_s": Param(20.0, "cruise speed spacing the reference points [mm/s]", 0.0, 200.0),
+    "lead_mm": Param(0.0, "arc length from the closest path point to the first reference point [mm]",
+                     -50.0, 100.0),
+    "lookahead_mm": Param(9.0, "pure-pursuit look-ahead distance [mm]", 0.1, 100.0),
+    "lookahead_gain_s": Param(0.001, "look-ahead growth with speed [s]", 0.0, 10.0),
+    "reference": Param("pursuit", f"reference over the horizon: {', '.join(REFERENCES)}"),
+    "backend": Param("osqp", "QP implementation: 'osqp' (condensed, fast) or 'cvxpy' (reference)"),
+    "eps": Param(1e-4, "OSQP absolute and relative tolerance", 1e-10, 1.0),
+    "max_iter": Param(200, "OSQP iteration limit per solve", 1, 100000),
+    "hover_hz": Param(0.0, "spin frequency (along x) of the hover point a nonlinear model is linearised at", 0.0, 60.0),
+}
+
+
+def _weights(p: dict, key: str) -> tuple[float, float, float]:
+    w = p[key]
+    if np.ndim(w) == 0:
+        w = [w] * 3
+    try:
+        w = tuple(float(v) for v in w)
+    except (TypeError, ValueError):
+        raise ComponentError(f"parameter {key}={p[key]!r}: expected three numbers") from None
+    if len(w) != 3 or min(w) < 0 or not all(np.isfinite(w)):
+        raise ComponentError(f"parameter {key}={p[key]!r}: expected three non-negative numbers")
+    return w
+
+
+def check_params(params) -> dict:
+    """Parameters with defaults, checked (ComponentError names the bad one); no model is touched."""
+    p = read_params(params, PARAMS)
+    if p["reference"] not in REFERENCES:
+        raise ComponentError(f"reference {p['reference']!r} unknown; known: {', '.join(REFERENCES)}")
+    if p["backend"] not in BACKENDS:
+        raise ComponentError(f"backend {p['backend']!r} unknown; known: {', '.join(BACKENDS)}")
+    for key in ("horizon", "max_iter"):
+        if p[key] != int(p[key]):
+            raise ComponentError(f"parameter {key}={p[key]!r}: expected a whole number")
+    q, _, ru = (_weights(p, key) for key in ("q", "r", "ru"))
+    if sum(q) == 0 or sum(q) + sum(ru) == 0:
+        raise ComponentError("q must not be all zero (nothing to track), nor q and ru both")
+    return p
+
+
+def model_matrices(model, dt_s: float, hover_hz: float = 0.0):
+    """(A (6, 6), B (6, 3), c (6,)) of ``model`` over one step of ``dt_s`` [s] (mm, mm/s, Hz).
+
+    Linear models use ``linear_matrices()`` composed ``dt_s / model.dt_s`` times;
+    others are linearised at hover (p = 0, v = 0, u = [hover_hz, 0, 0]) over dt_s.
+    """
+    try:
+        A, B, c = (np.asarray(m, dtype=float) for m in model.linear_matrices())
+    except NotImplementedError:
+        u_h = np.array([hover_hz, 0.0, 0.0])
+        return tuple(np.asarray(m, dtype=float) for m in model.jacobians(np.zeros(6), u_h, dt_s))
+    ratio = dt_s / model.dt_s
+    n = int(round(ratio))
+    if n < 1 or abs(ratio - n) > 1e-6:
+        raise ValueError(f"the model steps {model.dt_s * 1e3:g} ms; the scenario's {dt_s * 1e3:g} ms is not a multiple")
+    An, Bn, cn = np.eye(6), np.zeros((6, 3)), np.zeros(6)
+    for _ in range(n):
+        An, Bn, cn = A @ An, A @ Bn + B, A @ cn + c
+    return An, Bn, cn
+
+
+class MPCController(Component):
+    """Eq. 15 on a linear(ised) model, warm-started OSQP every step; pure-pursuit reference."""
+
+    uses_path = True
+    inputs = (
+        Port("position", (3,), "m", "estimated position (NaN: none yet)"),
+        Port("velocity", (3,), "m/s", "estimated velocity"),
+    )
+    outputs = CONTROLLER_OUTPUTS
+
+    @classmethod
+    def validate_params(cls, params):
+        """Cheap checks of the scenario's params (the model is not resolved here)."""
+        check_params(params)
+
+    def setup(self, params, rng):
+        p = self.p = check_params(params)
+        q, r, ru = (_weights(p, key) for key in ("q", "r", "ru"))
+        self.dt = params["dt"]
+        self.path = params.get("path")
+        if self.path is None:
+            raise ComponentError("controller.mpc needs a path in the scenario")
+        self.pursuit = PurePursuit(self.path, p["lookahead_mm"] * 1e-3, p["lookahead_gain_s"])
+        A, B, c = self._load_model(p)
+        self.spec = MPCSpec(A=A, B=B, c=c, horizon=int(p["horizon"]), q=q, r=r, ru=ru, f_max_hz=p["f_max_hz"],
+                            u_max=p["u_max"], du_max=p["du_max"], eps=p["eps"], max_iter=int(p["max_iter"]))
+        self.qp = CondensedMPC(self.spec) if p["backend"] == "osqp" else CvxpyMPC(self.spec)
+        self.u_prev = np.zeros(3)
+        self.failures = 0
+        self.last_plan: np.ndarray | None = None
+
+    def _load_model(self, p):
+        from cosim.errors import UserError
+        from cosim.identify.cache import resolve_model
+
+        try:
+            model = resolve_model(str(p["model"]))
+            A, B, c = model_matrices(model, self.dt, p["hover_hz"])
+        except (UserError, ValueError, RuntimeError) as exc:
+            raise ComponentError(f"model {p['model']!r}: {exc}") from None
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B)) and np.all(np.isfinite(c))):
+            raise ComponentError(f"model {p['model']!r}: non-finite matrices")
+        if np.abs(B).max() == 0:
+            raise ComponentError(f"model {p['model']!r}: the command has no effect at the linearisation point "
+                                 "(set hover_hz or use a linear model)")
+        return A, B, c
+
+    def step(self, t, inputs):
+        with SolveTimer() as timer:
+            omega = self._control(t, np.asarray(inputs["position"]), np.asarray(inputs["velocity"]))
+        return {"omega": omega, "solve_time": timer.elapsed}
+
+    # ------------------------------------------------------------ control
+
+    def _control(self, t: float, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
+        s = self.spec
+        if not np.all(np.isfinite(pos)):  # no estimate (yet): ramp to zero within the Delta-u bound
+            self.u_prev = clip_first(np.zeros(3), self.u_prev, s.u_max, s.du_max)
+            return 2 * np.pi * s.f_max_hz * self.u_prev
+        vel = vel if np.all(np.isfinite(vel)) else np.zeros(3)
+        x = np.concatenate([pos, vel]) * 1e3  # [mm, mm/s]
+        ref = self.horizon_reference(t, pos, vel) * 1e3  # (N, 3) [mm]
+        plan = self.qp.solve(x, ref, self.u_prev)
+        if plan is None:
+            self.failures += 1
+        self.last_plan = plan
+        u0 = clip_first(np.zeros(3) if plan is None else plan[0], self.u_prev, s.u_max, s.du_max)
+        f_norm = np.linalg.norm(u0) * s.f_max_hz
+        if f_norm > self.p["f_norm_max_hz"]:
+            u0 = u0 * (self.p["f_norm_max_hz"] / f_norm)  # towards zero: the bounds still hold
+        self.u_prev = u0
+        return 2 * np.pi * s.f_max_hz * u0
+
+    def horizon_reference(self, t: float, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
+        """Reference positions r_1..r_N, shape (N, 3) [m] (see the module docstring)."""
+        N, kind = self.spec.horizon, self.p["reference"]
+        target, _, _ = self.pursuit.reference(pos, vel, t)
+        step_m = self.p["speed_mm_s"] * 1e-3 * self.dt
+        if kind == "target":
+            return np.tile(target, (N, 1))
+        if kind == "pursuit":
+            to_target = target - pos
+            dist = np.linalg.norm(to_target)
+            s = np.minimum(step_m * np.arange(1, N + 1), dist)
+            return pos + s[:, None] * (to_target / max(dist, 1e-12))
+        pts = self.path.points(t)
+        n = len(pts)
+        spacing = np.linalg.norm(pts[1] - pts[0])
+        ahead = np.rint((self.p["lead_mm"] * 1e-3 + step_m * np.arange(1, N + 1)) / spacing).astype(int)
+        idx = self.pursuit.index + ahead
+        idx = idx % n if self.path.closed else np.clip(idx, 0, n - 1)
+        return pts[idx]

@@ -1,0 +1,78 @@
+"""A NaN (or out-of-range) controller output never reaches the coils: the run stops cleanly.
+
+The throwaway controller in ``nan_plugin.py`` (registered through the scenario's
+``plugins:`` field, like a user's own file) follows the path with PI and outputs
+NaN from t = 1 s. The coil driver refuses it (zero field + fault): the run
+stops at that tick with status "fault", and everything recorded stays readable.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim import plugins
+from cosim.data import read_log
+from cosim.runner import RunRequest, run
+from cosim.scheduler import RunError
+
+SCENARIO = Path(__file__).parent / "data" / "nan_racetrack.yaml"
+NAN_AT_S, DT = 1.0, 0.02
+
+
+@pytest.fixture
+def fresh_plugins():
+    plugins.reset()
+    yield
+    plugins.reset()
+
+
+def run_faulty(out: Path, *overrides):
+    with pytest.raises(RunError) as err:
+        run(RunRequest(SCENARIO, out, list(overrides), progress=False))
+    return json.loads((out / "summary.json").read_text()), str(err.value)
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "400.0"])  # (400, 400, 400) rad/s: 110 Hz > the 60 Hz limit
+def test_unsafe_command_stops_the_run_cleanly(tmp_path, fresh_plugins, value):
+    summary, message = run_faulty(tmp_path, f"components.controller.params.value={value}")
+    assert summary["status"] == "fault"
+    assert "coil_driver" in message and "unsafe command" in message
+    ticks = int(round(NAN_AT_S / DT))
+    assert summary["steps"] == ticks  # stopped at the faulty tick, nothing after it
+
+    log = read_log(tmp_path / "log.csv")  # the raw log is readable
+    assert len(log.t_s) == ticks
+    with np.load(tmp_path / "trace.npz") as trace:
+        omega = trace["controller.omega"]
+        volts = trace["coil_driver.coil_voltage_amp"]
+        position = trace["plant.position"]
+    assert len(omega) == ticks and np.all(np.isfinite(omega))  # the unsafe value was never applied
+    assert np.all(np.isfinite(volts)) and np.all(volts <= 40.0 + 1e-9)
+    assert np.all(np.isfinite(position))
+
+
+def test_coil_driver_answers_an_unsafe_command_with_zero_voltages():
+    """What the plant receives after the fault: the driver's outputs at the faulty tick."""
+    from cosim_plugins.coil_driver.inverse import InverseMagnetics
+
+    driver = InverseMagnetics()
+    driver.setup({"dt": DT}, np.random.default_rng(0))
+    ok = driver.step(0.0, {"omega": np.array([0.0, 0.0, 2 * np.pi * 8])})
+    assert ok["coil_voltage_amp"].max() > 0 and driver.fault is None
+    for bad in (np.array([np.nan, 0.0, 0.0]), np.array([np.inf, 0.0, 0.0]), np.array([0.0, 0.0, 2 * np.pi * 61])):
+        driver.fault = None
+        out = driver.step(DT, {"omega": bad})
+        assert driver.fault
+        assert np.all(out["coil_voltage_amp"] == 0) and float(out["drive_freq"]) == 0
+
+
+@pytest.mark.xfail(strict=True, reason="the recorder drops the faulty tick: trace.npz ends one tick before "
+                                       "the coil driver's zero voltages (reported to the lead; cosim/ not ours)")
+def test_recorded_trace_ends_with_zero_coil_voltages(tmp_path, fresh_plugins):
+    run_faulty(tmp_path)
+    with np.load(tmp_path / "trace.npz") as trace:
+        assert np.all(trace["coil_driver.coil_voltage_amp"][-1] == 0)
