@@ -64,6 +64,11 @@ def cmd_run(args) -> int:
               f"{summary['wall_time_s']:.1f} s ({summary['realtime_factor']:.0f}x real time)")
     print(f"recording: {out / 'recording.rrd' if 'sweep' not in summary else out / 'runs'}")
     print(f"summary:   {out / 'summary.json'}")
+    failed = [row for row in summary.get("sweep", []) if row["status"] != "ok"]
+    if failed:
+        print(f"cosim run: {len(failed)} of {len(summary['sweep'])} sweep runs did not finish: "
+              + ", ".join(f"{row['dir']} ({row['status']})" for row in failed), file=sys.stderr)
+        return 1
     return 0
 
 

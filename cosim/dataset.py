@@ -43,22 +43,62 @@ class PaperDataset:
 
 
 def _fingerprint(quick: bool) -> str:
-    from cosim_plugins.plant.build import ensure_fmu  # the plant the data comes from
+    """Hash of what the data depend on: the scenarios, the plant FMU, the code of the
+    plugin packages the scenarios use (plant, camera, estimator, controller, driver,
+    paths) and the length."""
+    import importlib
+
+    from cosim.scenario import load_scenario
+    from cosim.wiring import build_wiring
+    from cosim_plugins.plant.build import ensure_fmu
 
     h = hashlib.sha256()
+    packages = {"cosim_plugins.paths"}
     for name in ("training.yaml", "validation.yaml"):
         h.update((PAPER_SCENARIOS / name).read_bytes())
+        wiring = build_wiring(load_scenario(PAPER_SCENARIOS / name))
+        packages.update(cls.__module__.rsplit(".", 1)[0] for cls in wiring.classes.values())
+    for package in sorted(packages):
+        folder = Path(importlib.import_module(package).__file__).parent
+        for source in sorted(folder.glob("*.py")):
+            h.update(source.read_bytes())
     h.update(Path(ensure_fmu()).read_bytes())
     h.update(b"quick" if quick else b"full")
     return h.hexdigest()[:16]
 
 
+class CacheLock:
+    """An exclusive lock file, so concurrent runs never delete or half-write each other's cache."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def __enter__(self):
+        import fcntl
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.fh = open(self.path, "w")
+        fcntl.flock(self.fh, fcntl.LOCK_EX)
+        return self
+
+    def __exit__(self, *exc):
+        import fcntl
+
+        fcntl.flock(self.fh, fcntl.LOCK_UN)
+        self.fh.close()
+
+
 def ensure_dataset(quick: bool = False, folder: Path | None = None, force: bool = False,
                    progress: bool = True) -> PaperDataset:
     """The cached dataset; splits that are missing or stale are generated first (progress on stderr)."""
+    folder = Path(folder) if folder else cache_dir() / ("paper_dataset_quick" if quick else "paper_dataset")
+    with CacheLock(folder.parent / f".{folder.name}.lock"):
+        return _ensure(folder, quick, force, progress)
+
+
+def _ensure(folder: Path, quick: bool, force: bool, progress: bool) -> PaperDataset:
     from cosim.runner import RunRequest, run
 
-    folder = Path(folder) if folder else cache_dir() / ("paper_dataset_quick" if quick else "paper_dataset")
     manifest = folder / "manifest.json"
     stamp = _fingerprint(quick)
     data = json.loads(manifest.read_text()) if manifest.is_file() and not force else {}

@@ -58,7 +58,11 @@ def run(request: RunRequest) -> dict[str, Any]:
         print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
         sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
                          request.processes, request.progress)
-        summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
+        try:
+            summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
+        except RunError as exc:  # the other runs go on; this one's summary says what happened
+            print(f"  {exc}", file=sys.stderr)
+            summary = json.loads((sub_dir / "summary.json").read_text())
         rows.append({**labels, **{k: summary[k] for k in METRICS if summary[k] is not None},
                      "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
     summary: dict[str, Any] = {"scenario": scenario.name, "sweep": rows}

@@ -272,7 +272,8 @@ class Scheduler:
             if on_progress:
                 on_progress(state.tick + 1)
             self._watch()
-        completed = state.tick if state.error else state.tick + 1
+        faulted = isinstance(state.error, RunFault)  # its tick was recorded, as far as it went
+        completed = state.tick + 1 if (faulted or not state.error) else state.tick
         for obs in self.observers:
             obs.finish(str(state.error) if state.error else None)
         if state.error:
@@ -314,18 +315,19 @@ class Scheduler:
                 state.tick = tick
                 self.group.step(tick, t, [n for n in order if tick % periods[n] == 0], state)
                 state.busy()
-                values = {(c, p): self.cache.get(c, p, expected_stamp(tick, per, 0), self.scenario.timeout_s)
-                          for c, p, per in self._observed}
-                for obs in self.observers:
-                    obs.on_tick(tick, t, values)
+                self._observe(tick, t)
                 self.loop_wall_s = time.perf_counter() - wall0
                 if state.done:  # the watchdog gave up on us
                     return
         except PortTimeout as exc:
             self._fail(RunError(exc.component, f"its output {exc.port!r} for tick {exc.stamp} never arrived"))
+        except RunFault as exc:  # a node's fault: record the tick as far as it went
+            self._observe(state.tick, state.tick * dt, partial=True)
+            self._fail(exc)
         except RunError as exc:
             self._fail(exc)
         except ComponentFault as exc:
+            self._observe(state.tick, state.tick * dt, partial=True)
             self._fail(RunFault(state.pending[0] if state.pending else "scheduler",
                                 f"{exc} (t = {max(state.tick, 0) * dt:.3f} s)"))
         except Exception as exc:  # a local component's failure, reported with its name
@@ -333,6 +335,18 @@ class Scheduler:
             self._fail(RunError(name, f"failed at t = {max(state.tick, 0) * dt:.3f} s: {type(exc).__name__}: {exc}"))
         finally:
             state.done = True
+
+    def _observe(self, tick: int, t: float, partial: bool = False) -> None:
+        """Give the observers every port's value at ``tick``; ``partial`` (a fault stopped the
+        tick midway) gives what was published and leaves the rest out."""
+        if partial:
+            values = {(c, p): self.cache.get(c, p, s, 0.0) for c, p, per in self._observed
+                      if self.cache.has(c, p, s := expected_stamp(tick, per, 0))}
+        else:
+            values = {(c, p): self.cache.get(c, p, expected_stamp(tick, per, 0), self.scenario.timeout_s)
+                      for c, p, per in self._observed}
+        for obs in self.observers:
+            obs.on_tick(tick, t, values)
 
     def _fail(self, error: RunError) -> None:
         if self.progress.error is None:  # the watchdog's reason, if it spoke first, stands

@@ -15,7 +15,7 @@ import os
 import sys
 from pathlib import Path
 
-from cosim.dataset import cache_dir, ensure_dataset
+from cosim.dataset import CacheLock, cache_dir, ensure_dataset
 from cosim.errors import UserError
 
 
@@ -36,13 +36,15 @@ def ensure_model(kind: str, quick: bool | None = None, seed: int = 0) -> Path:
 
     resolve_names(kind)  # unknown kinds fail here, listing the known ones
     path = model_path(kind, quick, seed)
-    if path.is_file():
-        return path
-    print(f"training the {kind} model on the paper dataset (cached in {path.parent})", file=sys.stderr)
-    dataset = Dataset.from_paths(ensure_dataset(quick=quick).training)
-    model = fit_models(dataset, [kind], seed=seed, progress=_progress)[kind]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    model.save(path)
+    with CacheLock(path.parent.parent / f".{path.parent.name}-{kind}.lock"):
+        if path.is_file():
+            return path
+        print(f"training the {kind} model on the paper dataset (cached in {path.parent})", file=sys.stderr)
+        dataset = Dataset.from_paths(ensure_dataset(quick=quick).training)
+        model = fit_models(dataset, [kind], seed=seed, progress=_progress)[kind]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        model.save(path.with_suffix(".tmp.npz"))
+        path.with_suffix(".tmp.npz").replace(path)
     return path
 
 

@@ -42,16 +42,32 @@ def impedance_ohm(freq_hz: float, r_ohm: float, l_h: float, c_f: float) -> compl
     return complex(r_ohm, w * l_h - 1.0 / (w * c_f))
 
 
-def rotating_field_phasor(omega_rad_s: np.ndarray, amplitude_t: float) -> np.ndarray:
-    """Complex field phasor (3,) of a field rotating about ``omega`` (right-handed), amplitude in T.
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
-    ``B(t) = Re(phasor * exp(j 2 pi f t)) = A (e1 cos(2 pi f t) + e2 sin(2 pi f t))``
-    with ``(e1, e2, omega_hat)`` a right-handed orthonormal frame.
+
+def plane_start(n: np.ndarray, towards: np.ndarray | None) -> np.ndarray:
+    """Unit vector perpendicular to unit ``n``: ``towards`` projected onto the plane, else any."""
+    for candidate in (towards, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])):
+        if candidate is None:
+            continue
+        v = candidate - (candidate @ n) * n
+        norm = np.sqrt(v @ v)
+        if norm > 1e-6:
+            return v / norm
+    raise ValueError("no perpendicular found")  # unreachable for a unit n
+
+
+def rotating_field_phasor(n: np.ndarray, e1: np.ndarray, amplitude_t: float) -> np.ndarray:
+    """Complex field phasor (3,) of a field of ``amplitude_t`` [T] rotating about unit ``n``.
+
+    ``Re(phasor * exp(j theta)) = A (e1 cos(theta) + e2 sin(theta))`` with
+    ``e2 = n x e1``: the field points along ``e1`` at ``theta = 0`` and turns
+    right-handed about ``n``.
     """
-    nx, ny, nz = omega_rad_s / np.sqrt(omega_rad_s @ omega_rad_s)
-    if abs(nz) < 0.9:  # e1 = z x n, normalised
-        e1 = np.array([-ny, nx, 0.0]) / np.hypot(nx, ny)
-    else:  # e1 = x x n, normalised
-        e1 = np.array([0.0, -nz, ny]) / np.hypot(ny, nz)
-    e2 = np.array([ny * e1[2] - nz * e1[1], nz * e1[0] - nx * e1[2], nx * e1[1] - ny * e1[0]])  # n x e1
-    return amplitude_t * (e1 - 1j * e2)
+    return amplitude_t * (e1 - 1j * _cross(n, e1))
+
+
+def field_direction(n: np.ndarray, e1: np.ndarray, theta: float) -> np.ndarray:
+    """Unit field direction at rotation angle ``theta`` of the field defined as above."""
+    return np.cos(theta) * e1 + np.sin(theta) * _cross(n, e1)

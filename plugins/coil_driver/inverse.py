@@ -6,6 +6,13 @@ field matrix -> voltage phasors through each coil's series RLC impedance ->
 scaled down together if any exceeds the supply limit (the field keeps its
 direction and loses magnitude).
 
+The field stays continuous when the command changes: the plant's coils are
+driven as ``cos(2 pi f t + phase)`` in absolute time, so the driver starts
+each new command's rotation where the field points now (projected onto the
+new rotation plane) and offsets every phase by ``-2 pi f t``. Without that, a
+frequency change of df would jump the field's angle by ``2 pi df t`` and the
+magnet would lose step.
+
 Safety: a non-finite omega, or one above ``f_limit_hz``, never reaches the
 coils: the driver outputs zero field and raises a fault that stops the run
 cleanly (recorded in the summary).
@@ -19,8 +26,10 @@ from cosim import Component, ComponentError, Port
 from cosim.params import Param, read_params
 from cosim_plugins.coil_driver.actuation import (
     centre_matrix,
+    field_direction,
     impedance_ohm,
     loop_field_on_axis_t_per_a,
+    plane_start,
     rotating_field_phasor,
 )
 
@@ -62,6 +71,7 @@ class InverseMagnetics(Component):
                                        p["z_near_mm"] * 1e-3, (p["z_near_mm"] + p["thickness_mm"]) * 1e-3)
         self.m_pinv = np.linalg.pinv(centre_matrix(g))  # (6, 3) A/T
         self.zero = {"coil_voltage_amp": np.zeros(6), "coil_voltage_phase": np.zeros(6), "drive_freq": np.array(0.0)}
+        self.rotation = None  # (n, e1, f_hz, t0_s) of the field being driven: angle 2 pi f (t - t0)
 
     def initial_outputs(self):
         return self.zero
@@ -71,13 +81,23 @@ class InverseMagnetics(Component):
         f = np.linalg.norm(omega) / (2 * np.pi)
         if not np.all(np.isfinite(omega)) or f > self.p["f_limit_hz"]:
             self.fault = f"unsafe command omega = {omega} rad/s (limit {self.p['f_limit_hz']:g} Hz): field off"
+            self.rotation = None
             return self.zero
         if f < self.p["f_min_hz"] or self.p["field_mT"] == 0.0:
+            self.rotation = None
             return self.zero
-        field = rotating_field_phasor(omega, self.p["field_mT"] * 1e-3)
+        n = omega / (2 * np.pi * f)
+        now = None
+        if self.rotation is not None:  # where the field points now, continued in the new plane
+            n0, e10, f0, t0 = self.rotation
+            now = field_direction(n0, e10, 2 * np.pi * f0 * (t - t0))
+        e1 = plane_start(n, now)
+        self.rotation = (n, e1, f, t)
+        field = rotating_field_phasor(n, e1, self.p["field_mT"] * 1e-3)
         current = self.m_pinv @ field  # (6,) complex A
         volts = current * impedance_ohm(f, self.p["r_ohm"], self.p["l_h"], self.p["c_f"])
         peak = np.abs(volts).max()
         if peak > self.p["v_max"]:
             volts = volts * (self.p["v_max"] / peak)
-        return {"coil_voltage_amp": np.abs(volts), "coil_voltage_phase": np.angle(volts), "drive_freq": np.array(f)}
+        phase = np.angle(volts) - np.remainder(2 * np.pi * f * t, 2 * np.pi)  # angle 0 at t, in absolute time
+        return {"coil_voltage_amp": np.abs(volts), "coil_voltage_phase": phase, "drive_freq": np.array(f)}

@@ -41,8 +41,8 @@ def test_unsafe_command_stops_the_run_cleanly(tmp_path, fresh_plugins, value):
     summary, message = run_faulty(tmp_path, f"components.controller.params.value={value}")
     assert summary["status"] == "fault"
     assert "coil_driver" in message and "unsafe command" in message
-    ticks = int(round(NAN_AT_S / DT))
-    assert summary["steps"] == ticks  # stopped at the faulty tick, nothing after it
+    ticks = int(round(NAN_AT_S / DT)) + 1  # the faulty tick is recorded, nothing after it
+    assert summary["steps"] == ticks
 
     log = read_log(tmp_path / "log.csv")  # the raw log is readable
     assert len(log.t_s) == ticks
@@ -50,7 +50,8 @@ def test_unsafe_command_stops_the_run_cleanly(tmp_path, fresh_plugins, value):
         omega = trace["controller.omega"]
         volts = trace["coil_driver.coil_voltage_amp"]
         position = trace["plant.position"]
-    assert len(omega) == ticks and np.all(np.isfinite(omega))  # the unsafe value was never applied
+    assert len(omega) == ticks and np.all(np.isfinite(omega[:-1]))
+    assert np.all(volts[-1] == 0)  # the unsafe command became zero field, never a voltage
     assert np.all(np.isfinite(volts)) and np.all(volts <= 40.0 + 1e-9)
     assert np.all(np.isfinite(position))
 
@@ -70,8 +71,6 @@ def test_coil_driver_answers_an_unsafe_command_with_zero_voltages():
         assert np.all(out["coil_voltage_amp"] == 0) and float(out["drive_freq"]) == 0
 
 
-@pytest.mark.xfail(strict=True, reason="the recorder drops the faulty tick: trace.npz ends one tick before "
-                                       "the coil driver's zero voltages (reported to the lead; cosim/ not ours)")
 def test_recorded_trace_ends_with_zero_coil_voltages(tmp_path, fresh_plugins):
     run_faulty(tmp_path)
     with np.load(tmp_path / "trace.npz") as trace:

@@ -63,3 +63,13 @@ def test_failing_component_is_named_and_the_record_so_far_is_kept(tmp_path, mode
     log = read_log(tmp_path / "log.csv", outlier_mm=50.0)
     assert log.n == summary["steps"]
     assert (tmp_path / "recording.rrd").is_file() and (tmp_path / "trace.npz").is_file()
+
+
+def test_a_failing_sweep_run_does_not_stop_the_others(tmp_path, capsys):
+    from cosim.cli import main
+
+    sweep = 'sweep={"components.relay.params.fail_at_s": [1.0, 100.0]}'
+    assert main(["run", str(FAULTY), "--out", str(tmp_path), "--set", sweep, "--quiet"]) == 1
+    rows = json.loads((tmp_path / "summary.json").read_text())["sweep"]
+    assert [(r["fail_at_s"], r["status"]) for r in rows] == [(1.0, "failed"), (100.0, "ok")]
+    assert "1 of 2 sweep runs did not finish" in capsys.readouterr().err
