@@ -43,28 +43,39 @@ class PaperDataset:
 
 
 def _fingerprint(quick: bool) -> str:
-    """Hash of what the data depend on: the scenarios, the plant FMU, the code of the
-    plugin packages the scenarios use (plant, camera, estimator, controller, driver,
-    paths) and the length."""
-    import importlib
-
+    """Hash of what the data depend on: the scenarios, the plant FMU, the source of the
+    components and paths the scenarios use (with the plugin modules those import) and
+    the length."""
+    from cosim.paths import make_path
     from cosim.scenario import load_scenario
     from cosim.wiring import build_wiring
     from cosim_plugins.plant.build import ensure_fmu
 
     h = hashlib.sha256()
-    packages = {"cosim_plugins.paths"}
+    sources: set[str] = set()
     for name in ("training.yaml", "validation.yaml"):
         h.update((PAPER_SCENARIOS / name).read_bytes())
-        wiring = build_wiring(load_scenario(PAPER_SCENARIOS / name))
-        packages.update(cls.__module__.rsplit(".", 1)[0] for cls in wiring.classes.values())
-    for package in sorted(packages):
-        folder = Path(importlib.import_module(package).__file__).parent
-        for source in sorted(folder.glob("*.py")):
-            h.update(source.read_bytes())
+        scenario = load_scenario(PAPER_SCENARIOS / name)
+        used = [*build_wiring(scenario).classes.values(), type(make_path(scenario.path.plugin))]
+        sources.update(f for cls in used for f in _plugin_sources(cls))
+    for source in sorted(sources):
+        h.update(Path(source).read_bytes())
     h.update(Path(ensure_fmu()).read_bytes())
     h.update(b"quick" if quick else b"full")
     return h.hexdigest()[:16]
+
+
+def _plugin_sources(cls: type) -> set[str]:
+    """The file defining ``cls`` and the files of the plugin modules it imports from."""
+    import inspect
+
+    module = sys.modules[cls.__module__]
+    files = {module.__file__}
+    for value in vars(module).values():
+        owner = inspect.getmodule(value)
+        if owner is not None and owner.__name__.startswith("cosim_plugins."):
+            files.add(owner.__file__)
+    return files
 
 
 class CacheLock:
