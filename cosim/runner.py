@@ -18,8 +18,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from cosim import bus
 from cosim.paths import make_path
 from cosim.portcache import PortCache
@@ -62,7 +60,9 @@ def run(request: RunRequest) -> dict[str, Any]:
             summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
         except RunError as exc:  # the other runs go on; this one's summary says what happened
             print(f"  {exc}", file=sys.stderr)
-            summary = json.loads((sub_dir / "summary.json").read_text())
+            written = sub_dir / "summary.json"  # absent when the run failed before its first step
+            summary = json.loads(written.read_text()) if written.is_file() else {
+                "status": "failed", "error": str(exc), **dict.fromkeys(METRICS)}
         rows.append({**labels, **{k: summary[k] for k in METRICS if summary[k] is not None},
                      "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
     summary: dict[str, Any] = {"scenario": scenario.name, "sweep": rows}
