@@ -57,7 +57,7 @@ def _fingerprint(quick: bool) -> str:
         h.update((PAPER_SCENARIOS / name).read_bytes())
         scenario = load_scenario(PAPER_SCENARIOS / name)
         used = [*build_wiring(scenario).classes.values(), type(make_path(scenario.path.plugin))]
-        sources.update(f for cls in used for f in _plugin_sources(cls))
+        sources.update(f for cls in used for f in plugin_sources(cls))
     for source in sorted(sources):
         h.update(Path(source).read_bytes())
     h.update(Path(ensure_fmu()).read_bytes())
@@ -65,15 +65,15 @@ def _fingerprint(quick: bool) -> str:
     return h.hexdigest()[:16]
 
 
-def _plugin_sources(cls: type) -> set[str]:
-    """The file defining ``cls`` and the files of the plugin modules it imports from."""
+def plugin_sources(cls: type, prefixes: tuple[str, ...] = ("cosim_plugins.",)) -> set[str]:
+    """The file defining ``cls`` and the files of the modules (named with ``prefixes``) it imports from."""
     import inspect
 
     module = sys.modules[cls.__module__]
     files = {module.__file__}
     for value in vars(module).values():
         owner = inspect.getmodule(value)
-        if owner is not None and owner.__name__.startswith("cosim_plugins."):
+        if owner is not None and owner.__name__.startswith(prefixes):
             files.add(owner.__file__)
     return files
 

@@ -10,6 +10,7 @@ clone runs such scenarios with no manual step and later runs reuse the file.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import sys
@@ -36,23 +37,30 @@ def ensure_model(kind: str, quick: bool | None = None, seed: int = 0) -> Path:
 
     resolve_names(kind)  # unknown kinds fail here, listing the known ones
     path = model_path(kind, quick, seed)
-    with CacheLock(path.parent.parent / f".{path.parent.name}-{kind}.lock"):
+    with CacheLock(path.parent.parent / f".{path.parent.name}-{path.stem}.lock"):
         if path.is_file():
             return path
         print(f"training the {kind} model on the paper dataset (cached in {path.parent})", file=sys.stderr)
         dataset = Dataset.from_paths(ensure_dataset(quick=quick).training)
         model = fit_models(dataset, [kind], seed=seed, progress=_progress)[kind]
         path.parent.mkdir(parents=True, exist_ok=True)
-        model.save(path.with_suffix(".tmp.npz"))
-        path.with_suffix(".tmp.npz").replace(path)
+        partial = path.with_name(path.stem + ".partial")
+        model.save(partial)
+        partial.replace(path)
     return path
 
 
 def model_path(kind: str, quick: bool, seed: int = 0) -> Path:
-    """Where the cached ``kind`` model for the current paper dataset lives (generating the dataset if needed)."""
+    """Where the cached ``kind`` model lives: keyed on the dataset's fingerprint and the
+    model's source code (generating the dataset if needed)."""
+    from cosim.dataset import plugin_sources
+    from cosim.plugins import lookup
+
     dataset = ensure_dataset(quick=quick)
     stamp = json.loads((dataset.folder / "manifest.json").read_text())["fingerprint"]
-    return cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}" / f"{kind}.npz"
+    code = hashlib.sha256(b"".join(Path(f).read_bytes() for f in sorted(plugin_sources(lookup("model", kind), ("cosim_plugins.", "cosim.identify.")))))
+    folder = cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}"
+    return folder / f"{kind}-{code.hexdigest()[:12]}.npz"
 
 
 def resolve_model(spec: str, base_dir: Path | None = None, quick: bool | None = None):
