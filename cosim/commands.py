@@ -151,6 +151,8 @@ def add_reproduce_command(sub) -> None:
     p = sub.add_parser("reproduce", help="regenerate every table and figure of the paper in simulation")
     p.add_argument("--out", type=Path, required=True, help="report folder")
     p.add_argument("--quick", action="store_true", help="shortened experiments (a few minutes in all)")
+    p.add_argument("--readme", type=Path, default=None, metavar="README.md",
+                   help="also put the tables into this README's results block (plots go to docs/results/)")
     p.set_defaults(func=cmd_reproduce)
 
 
@@ -158,9 +160,17 @@ def cmd_reproduce(args) -> int:
     from cosim.report_format import filled
     from cosim.reproduce import reproduce
 
+    if args.readme and not args.readme.is_file():
+        raise UserError(f"--readme {args.readme} does not exist")
+
     report = reproduce(args.out, quick=args.quick)
     print(f"report: {args.out / 'report.md'} (and report.html, report.json); {report['wall_time_s']:.0f} s")
     empty = filled((args.out / "report.md").read_text())
     if empty:
         print(f"warning: {len(empty)} table rows have missing figures", file=sys.stderr)
+    if args.readme:
+        from cosim.reproduce import update_readme
+
+        update_readme(args.out, args.readme, args.readme.parent / "docs" / "results")
+        print(f"updated the results in {args.readme}")
     return 0

@@ -1,7 +1,9 @@
-"""``cosim fit`` and ``cosim compare``.
+"""``cosim fit``, ``cosim compare`` and ``cosim diagnose``.
 
     cosim fit LOG... [--model all|NAME[,NAME...]] --out DIR [--seed N]
     cosim compare LOG... --models DIR --json OUT [--plots DIR] [--split train|test|validation]
+    cosim diagnose LOG... [--validate LOG...] [--model physical] [--effects-file FILE.py]...
+                   [--add EFFECT]... [--effects NAME,...] [--reference S] --out DIR
 """
 
 from __future__ import annotations
@@ -9,6 +11,8 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+
+from cosim.errors import UserError
 
 
 def add_commands(subparsers) -> None:
@@ -30,6 +34,26 @@ def add_commands(subparsers) -> None:
     c.add_argument("--plots", metavar="DIR", help="write PNG plots and compare.rrd here")
     c.add_argument("--split", choices=("train", "test", "validation"), help="label for these logs in the output")
     c.set_defaults(func=cmd_compare)
+
+    d = subparsers.add_parser(
+        "diagnose", help="find where a model fails and which physical effect explains it",
+        description="Fit the baseline model, measure its open-loop error against the noise floor, localise it, "
+                    "and rank candidate effects by the drop of held-out error after a joint refit. Writes "
+                    "DIR/diagnosis.json, DIR/report.md (+ PNG plots) and DIR/diagnosis.rrd.")
+    d.add_argument("logs", nargs="+", metavar="LOG", help="raw log CSV files")
+    d.add_argument("--validate", nargs="+", default=[], metavar="LOG",
+                   help="held-out logs (default: every third 5 s block of the given logs)")
+    d.add_argument("--model", default="physical", help="baseline model (any registered model; default physical)")
+    d.add_argument("--effects-file", action="append", default=[], metavar="FILE.py",
+                   help="a Python file registering effects (cosim_register_effects hook); repeatable")
+    d.add_argument("--add", action="append", default=[], metavar="EFFECT",
+                   help="refit with this effect and show the error before and after; repeatable")
+    d.add_argument("--effects", metavar="NAME[,NAME...]",
+                   help="candidate effects to rank (default: every registered effect)")
+    d.add_argument("--reference", default="1.0", help="reference horizon for the ranking [s] (default 1.0)")
+    d.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    d.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    d.set_defaults(func=cmd_diagnose)
 
 
 def _progress(message: str) -> None:
@@ -90,6 +114,52 @@ def cmd_compare(args) -> int:
         files = write_plots(models, dataset, result, args.plots)
         print(f"wrote {len(files)} plot files to {args.plots}")
     return 0
+
+
+def cmd_diagnose(args) -> int:
+    from cosim.identify.diagnose import Settings, run
+    from cosim.identify.report import write_outputs
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a directory")
+    candidates = None
+    if args.effects is not None:
+        candidates = [n.strip() for n in args.effects.split(",") if n.strip() and n.strip() != "none"]
+    settings = Settings(model=args.model, effects_files=args.effects_file, add=args.add, candidates=candidates,
+                        reference=args.reference, seed=args.seed)
+    diag = run(args.logs, args.validate, settings, progress=_progress)
+    files = write_outputs(diag, out)
+    print(format_diagnosis(diag.result))
+    print(f"wrote {len(files)} files to {out} (report.md, diagnosis.json, diagnosis.rrd)")
+    return 0
+
+
+def format_diagnosis(r: dict) -> str:
+    """Printable summary of a diagnosis: errors by horizon, ranking, verdict."""
+    hs = list(r["horizons_s"])
+    key = next(k for k, v in r["horizons_s"].items() if v == r["reference_horizon_s"])
+    lines = [f"{'held-out error [mm]':<28}" + "".join(f"{h + ' s':>9}" for h in hs),
+             f"{r['baseline']['model'] + ' (baseline)':<28}" + "".join(f"{_num(r['baseline']['rollout_mm'][h]):>9}"
+                                                                      for h in hs)]
+    if r["added"]:
+        a = r["added"]
+        lines.append(f"{'+ ' + ' + '.join(a['effects']):<28}" + "".join(f"{_num(a['rollout_mm'][h]):>9}" for h in hs))
+    elif r["reference"]:
+        ref = r["reference"]
+        lines.append(f"{ref['model'] + ' (effects ref.)':<28}"
+                     + "".join(f"{_num(ref['rollout_mm'][h]):>9}" for h in hs))
+    lines.append(f"{'noise floor':<28}" + "".join(f"{_num(r['noise']['floor_mm'][h]):>9}" for h in hs))
+    lines += ["", f"{'rank':<5}{'effect':<20}{'error ' + key + ' s':>12}{'reduction':>11}{'t':>7}"]
+    for i, e in enumerate(r["ranking"], 1):
+        lines.append(f"{i:<5}{e['effect']:<20}{_num(e['rollout_mm'][key]):>12}{e['reduction']:>+11.1%}"
+                     f"{e['t_stat']:>7.1f}")
+    lines += ["", "verdict: " + r["verdict"]["explanation"]]
+    return "\n".join(lines)
+
+
+def _num(v) -> str:
+    return "-" if v is None else f"{v:.3f}"
 
 
 def _short(v) -> str:

@@ -1,49 +1,31 @@
-"""Named extra force terms the physical model can include and fit jointly.
+"""Extra force terms of the physical model: force-kind effects.
 
-A term has a name, parameters (initial value, bounds, unit) and a vectorised
-force ``force(p, v, u, params) -> (n, 3)`` in uN, with p (n, 3) mm,
-v (n, 3) mm/s, u (n, 3) Hz and ``params`` a ``{name: float}`` dict of the
-term's own parameters. Effects (wall drag, background flow, gradient force...)
-are built on this; any object with the same attributes works.
+A term is a :class:`~cosim.identify.effect.Effect` of kind ``"force"``:
+a name, parameters (initial value, bounds, unit) and a vectorised force
+``force(p, v, u, params) -> (n, 3)`` in uN, with p (n, 3) mm, v (n, 3) mm/s,
+u (n, 3) Hz and ``params`` the term's own parameters by short name (plus
+the host model's, see :mod:`cosim.identify.effect`). ``ForceTerm(name,
+params, force)`` builds one; the effect library (``cosim_plugins.effects``)
+registers the named ones, which a saved model refers to by name.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from typing import Callable
+from cosim.identify.effect import Effect, Param
 
-import numpy as np
+__all__ = ["ForceTerm", "Param", "quadratic_drag"]
 
 
-@dataclass(frozen=True)
-class Param:
-    """A fitted scalar: name, initial value, bounds, unit (for reports)."""
-
-    name: str
-    init: float
-    lo: float = -math.inf
-    hi: float = math.inf
-    unit: str = ""
+def ForceTerm(name: str, params, force, doc: str = "") -> Effect:  # noqa: N802 (kept for its old class name)
+    """A force-kind :class:`Effect`: ``force(p, v, u, params) -> (n, 3)`` [uN]."""
+    return Effect(name=name, params=tuple(params), force=force, kind="force", doc=doc)
 
 
-@dataclass(frozen=True)
-class ForceTerm:
-    """An extra force: ``force(p, v, u, params) -> (n, 3)`` [uN]."""
+def quadratic_drag(init: float = 0.0) -> Effect:
+    """The library's isotropic quadratic drag -c |v| v (c in uN s^2/mm^2), starting at c = ``init``."""
+    from dataclasses import replace
 
-    name: str
-    params: tuple[Param, ...]
-    force: Callable[[np.ndarray, np.ndarray, np.ndarray, dict], np.ndarray]
+    from cosim.identify.effect import resolve
 
-    def param_names(self) -> list[str]:
-        """Fully qualified names ``term.param`` used in reports and files."""
-        return [f"{self.name}.{p.name}" for p in self.params]
-
-
-def quadratic_drag(init: float = 0.0) -> ForceTerm:
-    """Isotropic quadratic drag -c |v| v (c in uN s^2/mm^2); an example term."""
-
-    def force(p, v, u, params):
-        return -params["c"] * np.linalg.norm(v, axis=1, keepdims=True) * v
-
-    return ForceTerm("quadratic_drag", (Param("c", init, 0.0, math.inf, "uN s^2/mm^2"),), force)
+    (effect,) = resolve(["quadratic_drag"])
+    return replace(effect, params=tuple(replace(p, init=init) for p in effect.params))

@@ -94,7 +94,9 @@ def forces(p, v, u, params: dict, terms=(), pb_norm_mm: float = 70 * math.sqrt(3
 
 
 def _term_params(term, params: dict) -> dict:
-    return {q.name: params[f"{term.name}.{q.name}"] for q in term.params}
+    """The term's own parameters by short name, plus the base parameters (k, Cd0, ...) it may reuse."""
+    own = {q.name: params[f"{term.name}.{q.name}"] for q in term.params}
+    return {**{n: params[n] for n in BASE_NAMES}, **own}
 
 
 def phi1(z):
@@ -115,6 +117,9 @@ class PhysicalModel(Model):
         super().__init__(mass_mg=mass_mg, pb_mm=list(pb_mm), horizon=horizon, max_windows=max_windows,
                          max_nfev=max_nfev, vp_passes=vp_passes, substeps=substeps, seed=seed)
         self.terms: list[ForceTerm] = list(terms)
+        for term in self.terms:
+            if getattr(term, "kind", "force") != "force":
+                raise ValueError(f"effect {term.name!r} is a {term.kind} transform, not a force term")
         self._pb = float(np.linalg.norm(pb_mm))
         self._scale = 1000.0 / mass_mg
         self._theta = np.array([p.init for p in self.all_params()])
@@ -168,6 +173,13 @@ class PhysicalModel(Model):
         for _ in range(n):
             xt = self._step_t(xt, ut, h, self._theta)
         return xt.T[0] if single else xt.T
+
+    def predict_t(self, xt: np.ndarray, ut: np.ndarray, dt_s: float) -> np.ndarray:
+        """:meth:`predict` on component-major batches, xt (6, n), ut (3, n) -> (6, n) (fast batch rollouts)."""
+        n, h = self.options["substeps"], dt_s / self.options["substeps"]
+        for _ in range(n):
+            xt = self._step_t(xt, ut, h, self._theta)
+        return xt
 
     def _step_t(self, x, u, h, th):
         """One step of h [s] on component-major arrays: x (6, n), u (3, n) -> (6, n)."""

@@ -1,0 +1,283 @@
+"""A model plus effects, fitted jointly on window rollouts, and its open-loop errors.
+
+:class:`JointModel` wraps a fitted host model (any :class:`~cosim.identify.model.Model`;
+effects need a parametric host with ``terms``, ``all_params``, ``set_params``
+and ``params``, like the physical model) with extra effects: force effects
+become the host's terms, input effects transform the command timeline and
+sensor effects the predicted measurements. Units: mm, mm/s, Hz, s.
+
+Rollouts are batched over windows (see :mod:`cosim.identify.timeline`).
+Each window's initial position and velocity are nuisance unknowns solved by
+a small linear least-squares step on the rollout's sensitivity to them
+(variable projection), because a measured velocity carries the camera noise
+(~7 mm/s at 0.1 mm and 20 ms):
+
+* fitting (:func:`fit_joint`): the initial state fits the whole window and
+  all parameters minimise the remaining position residuals
+  (``scipy.optimize.least_squares``), with standard errors from the
+  Jacobian at the solution;
+* evaluation (:meth:`JointModel.evaluate`): the initial state fits only a
+  lead-in of ``lead`` steps, and the open-loop error is read ``K`` steps
+  after the lead-in's last measurement, as an estimator would predict.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from cosim.identify.effect import split_kinds
+
+DV = 1.0  # velocity perturbation for the sensitivities [mm/s]
+RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
+
+
+def supports_effects(model) -> bool:
+    """True if ``model`` can take force terms and expose its parameters (the physical model can)."""
+    return all(hasattr(model, a) for a in ("terms", "all_params", "set_params", "params"))
+
+
+class JointModel:
+    """A host model with effects; parameters are the host's plus the transforms' (see module doc)."""
+
+    def __init__(self, host, effects=(), base_params: dict | None = None):
+        self.effects = list(effects)
+        forces, self.inputs, self.sensors = split_kinds(self.effects)
+        self.dt_s = host.dt_s
+        if self.effects:
+            if not supports_effects(host):
+                raise ValueError(f"model {host.name!r} cannot include effects")
+            opts = dict(host.options)
+            host = type(host)(**opts, terms=[*host.terms, *forces])
+            host.dt_s = self.dt_s
+        self.host = host
+        self.param_list = list(host.all_params()) if supports_effects(host) else []
+        for e in (*self.inputs, *self.sensors):
+            self.param_list += [type(q)(f"{e.name}.{q.name}", q.init, q.lo, q.hi, q.unit) for q in e.params]
+        self.names = [q.name for q in self.param_list]
+        self.std: dict = {}  # standard errors after fit_joint
+        start = {q.name: q.init for q in self.param_list}
+        start.update(host.params() if supports_effects(host) else {})
+        start.update(base_params or {})
+        self._set(np.array([start[n] for n in self.names], dtype=float))
+
+    # ------------------------------------------------------------ parameters
+
+    def _set(self, theta: np.ndarray) -> None:
+        self.theta = np.asarray(theta, dtype=float)
+        prm = dict(zip(self.names, self.theta))
+        if supports_effects(self.host):
+            host_names = [q.name for q in self.host.all_params()]
+            self.host.set_params({n: prm[n] for n in host_names})
+        self.prm = prm
+
+    def params(self) -> dict:
+        return {n: float(t) for n, t in zip(self.names, self.theta)}
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([q.lo for q in self.param_list]), np.array([q.hi for q in self.param_list])
+
+    def clip(self, theta: np.ndarray) -> np.ndarray:
+        """theta moved strictly inside the bounds (least_squares needs an interior start)."""
+        lo, hi = self.bounds()
+        span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+        return np.clip(theta, lo + 1e-9 * span, hi - 1e-9 * span)
+
+    # ------------------------------------------------------------ rollouts
+
+    def _step(self, xt, ut):
+        if hasattr(self.host, "predict_t"):
+            return self.host.predict_t(xt, ut, self.dt_s)
+        return self.host.predict(xt.T, ut.T, self.dt_s).T
+
+    def trajectories(self, tl, starts: np.ndarray, length: int, x0: np.ndarray, u_eff=None) -> np.ndarray:
+        """Predicted measurements (c, w, L + 1, 3) from initial states x0 (c, w, 6) at rows ``starts`` (w,).
+
+        ``c`` stacks variants of the same windows (the velocity perturbations);
+        commands past a window's usable run are replaced by zeros (callers mask those rows).
+        """
+        if u_eff is None:
+            u_eff = tl.effective_commands(self.inputs, self.prm)
+        c, w = x0.shape[:2]
+        rows = starts[:, None] + np.arange(length)[None, :]
+        U = np.nan_to_num(u_eff[np.minimum(rows, tl.n - 1)])  # (w, L, 3)
+        Ut = np.ascontiguousarray(np.tile(U.transpose(1, 2, 0), (1, 1, c)))  # (L, 3, c w)
+        xt = np.ascontiguousarray(x0.reshape(c * w, 6).T)
+        out = np.empty((length + 1, 3, c * w))
+        out[0] = xt[:3]
+        for j in range(length):
+            xt = self._step(xt, Ut[j])
+            out[j + 1] = xt[:3]
+        traj = out.transpose(2, 0, 1).reshape(c, w, length + 1, 3)
+        for effect in self.sensors:
+            prm = {q.name: self.prm[f"{effect.name}.{q.name}"] for q in effect.params}
+            traj = np.stack([effect.transform(t, tl.dt_s, prm) for t in traj])
+        return traj
+
+    def projected(self, tl, starts, length, fit_rows: np.ndarray, x0=None, passes: int = 1, u_eff=None):
+        """Rollouts with each window's initial state solved on ``fit_rows``.
+
+        Args:
+            fit_rows: (w, L + 1) bool, rows whose measurements determine the initial state.
+            x0: (w, 6) starting guesses (default ``tl.x_lin`` at the starts).
+        Returns:
+            (pred (w, L + 1, 3) predicted measurements after the correction,
+             S (w, L + 1, 3, 6) sensitivity to the initial state, G (w, 6, 6) its normal matrix).
+        """
+        x0 = tl.x_lin[starts].copy() if x0 is None else x0.copy()
+        target = targets(tl, starts, length)
+        use = fit_rows & np.all(np.isfinite(target), axis=2)
+        tz = np.where(use[..., None], target, 0.0)
+        for _ in range(max(passes, 1)):
+            xs = np.stack([x0] + [x0 + DV * np.eye(6)[3 + a] for a in range(3)])
+            q = self.trajectories(tl, starts, length, xs, u_eff)
+            S = np.zeros(q.shape[1:3] + (3, 6))
+            S[..., :3] = np.eye(3)
+            S[..., 3:] = ((q[1:] - q[0]) / DV).transpose(1, 2, 3, 0)
+            q0 = np.where(np.isfinite(q[0]), q[0], 0.0)
+            S = np.where(np.isfinite(S), S, 0.0)
+            r = np.where(use[..., None], q0 - tz, 0.0)
+            Su = S * use[..., None, None]
+            G = np.einsum("wkai,wkaj->wij", Su, Su) + RIDGE
+            d = np.linalg.solve(G, -np.einsum("wkai,wka->wi", Su, r)[..., None])[..., 0]
+            x0 = x0 + d
+        pred = q0 + np.einsum("wkai,wi->wka", S, d)
+        return pred, S, G
+
+    # ------------------------------------------------------------ evaluation
+
+    def evaluate(self, tl, starts: np.ndarray, lead: int, steps: dict, sigma_mm=None, draws: int = 4, seed: int = 0):
+        """Open-loop errors ``steps[key]`` steps after a lead-in of ``lead`` steps.
+
+        Args:
+            starts: (w,) window start rows (the lead-in's first row).
+            steps: {horizon key: steps after the lead-in}.
+            sigma_mm: (3,) measurement noise per axis; if given, also the error a
+                perfect model would show with that noise (the noise floor).
+        Returns:
+            {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm],
+                   "floor": (w,) expected norm for a perfect model (if sigma_mm)}}
+        """
+        length = lead + max(steps.values())
+        fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
+        fit_rows[:, : lead + 1] = True
+        pred, S, G = self.projected(tl, starts, length, fit_rows, passes=2)
+        target = targets(tl, starts, length)
+        out = {}
+        floors = _floor_draws(S, G, fit_rows & np.all(np.isfinite(target), axis=2), lead, steps, sigma_mm,
+                              draws, seed) if sigma_mm is not None else {}
+        for key, k in steps.items():
+            row = lead + k
+            valid = (tl.run[starts] >= row) & np.all(np.isfinite(target[:, row]), axis=1)
+            err = np.where(valid[:, None], pred[:, row] - np.nan_to_num(target[:, row]), np.nan)
+            out[key] = {"valid": valid, "err": err}
+            if key in floors:
+                out[key]["floor"] = floors[key]
+        return out
+
+
+def targets(tl, starts: np.ndarray, length: int) -> np.ndarray:
+    """(w, L + 1, 3) measured positions of windows at ``starts``; NaN past the end of the data."""
+    rows = starts[:, None] + np.arange(length + 1)[None, :]
+    out = tl.p[np.minimum(rows, tl.n - 1)]
+    out[rows >= tl.n] = np.nan
+    return out
+
+
+def _floor_draws(S, G, use, lead, steps, sigma, draws, seed) -> dict:
+    """Per-window expected error norm of a perfect model under white noise ``sigma`` (3,) [mm]."""
+    rng = np.random.default_rng(seed)
+    sigma = np.asarray(sigma, dtype=float)
+    w, rows = use.shape
+    acc = {key: np.zeros(w) for key in steps}
+    for _ in range(draws):
+        n = rng.normal(size=(w, rows, 3)) * sigma
+        nu = np.where(use[..., None], n, 0.0)
+        d = np.linalg.solve(G, np.einsum("wkai,wka->wi", S * use[..., None, None], nu)[..., None])[..., 0]
+        for key, k in steps.items():
+            row = lead + k
+            e = -n[:, row] + np.einsum("wai,wi->wa", S[:, row], d)
+            acc[key] += np.linalg.norm(e, axis=1) / draws
+    return acc
+
+
+@dataclass
+class FitResult:
+    """Outcome of :func:`fit_joint`: parameters, standard errors, costs."""
+
+    params: dict
+    std: dict
+    rms_mm: float
+    rms_start_mm: float
+    evaluations: int
+    status: int
+    start: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int = 30,
+              extra_starts=(), progress=None) -> FitResult:
+    """Fit all parameters of ``jm`` on windows of ``length`` steps at rows ``starts``.
+
+    ``extra_starts`` are ``{name: value}`` dicts tried (one residual each)
+    besides the current parameters; the lowest cost is refined. Standard
+    errors come from the Jacobian at the solution, sigma^2 (J^T J)^-1,
+    inflated by how often each measurement enters overlapping windows.
+    """
+    fit_rows = np.ones((len(starts), length + 1), dtype=bool)
+    target = targets(tl, starts, length)
+    use = np.all(np.isfinite(target), axis=2)
+    counter = {"n": 0}
+    fixed_u = None if jm.inputs else tl.effective_commands([], {})
+
+    def residual(theta):
+        counter["n"] += 1
+        jm._set(theta)
+        pred, _, _ = jm.projected(tl, starts, length, fit_rows, u_eff=fixed_u)
+        r = np.where(use[..., None], pred - np.nan_to_num(target), 0.0)
+        return r.reshape(-1)
+
+    candidates = [jm.clip(jm.theta)]
+    for extra in extra_starts:
+        th = jm.theta.copy()
+        for name, value in extra.items():
+            th[jm.names.index(name)] = value
+        candidates.append(jm.clip(th))
+    costs = [float(np.sum(residual(th) ** 2)) for th in candidates]
+    best = int(np.argmin(costs))
+    lo, hi = jm.bounds()
+    r0 = residual(candidates[best])
+    res = least_squares(residual, candidates[best], bounds=(lo, hi), x_scale="jac", method="trf",
+                        max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
+    jm._set(res.x)
+    n_used = int(use.sum()) * 3
+    rows_used = np.zeros(tl.n, dtype=bool)
+    rows_used[(starts[:, None] + np.arange(length + 1)[None, :])[use]] = True
+    std = _standard_errors(res.jac, res.fun, n_used, 3 * int(rows_used.sum()))
+    jm.std = {n: float(x) for n, x in zip(jm.names, std)}
+    if progress:
+        progress(f"fit {len(starts)} windows x {length} steps: rms {math.sqrt(np.mean(r0 ** 2) * r0.size / n_used):.3f}"
+                 f" -> {math.sqrt(2 * res.cost / n_used):.3f} mm ({counter['n']} evaluations)")
+    return FitResult(params=jm.params(), std=dict(zip(jm.names, std)),
+                     rms_mm=math.sqrt(2 * res.cost / n_used), rms_start_mm=math.sqrt(float(np.sum(r0 ** 2)) / n_used),
+                     evaluations=counter["n"], status=int(res.status), start=best)
+
+
+def _standard_errors(J, r, n_used: int, n_distinct: int) -> np.ndarray:
+    """sqrt(diag(s^2 (J^T J)^+)) with s^2 = |r|^2 / (n - P), times the overlap inflation n_used / n_distinct.
+
+    NaN for a parameter the residuals do not depend on (e.g. a step-out frequency above every command).
+    """
+    J = np.asarray(J)
+    p = J.shape[1]
+    s2 = float(r @ r) / max(n_used - p, 1)
+    JTJ = J.T @ J
+    scale = np.sqrt(np.maximum(np.diag(JTJ), 1e-300))
+    cov = np.linalg.pinv(JTJ / np.outer(scale, scale)) / np.outer(scale, scale)
+    inflation = max(n_used / max(n_distinct, 1), 1.0)
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0) * s2 * inflation)
+    std[np.diag(JTJ) <= 1e-12 * max(float(np.max(np.diag(JTJ))), 1e-300)] = np.nan  # the data do not see it
+    return std

@@ -1,0 +1,90 @@
+"""The verdict of a diagnosis: which effect explains the error, if any.
+
+An effect is named only when its joint refit lowers the held-out error at
+the reference horizon
+
+* by at least :data:`MIN_REDUCTION` (relative),
+* significantly: paired per-window improvements, averaged in blocks of
+  :data:`BLOCK_S` (neighbouring windows share data), give t >= :data:`MIN_T`,
+* and by at least :data:`MIN_EXPLAINED` of the baseline's excess over the
+  noise floor (the part of the error that is explainable at all).
+
+Otherwise the verdict is "the model is at the noise floor" when the
+baseline's error is within :data:`AT_FLOOR` of the floor, else "no listed
+effect explains the remaining error" with the localisation clues.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MIN_REDUCTION = 0.10
+MIN_T = 3.0
+MIN_EXPLAINED = 0.25
+AT_FLOOR = 0.25  # error <= (1 + AT_FLOOR) x floor
+BLOCK_S = 1.0
+
+
+def paired_t(ref: dict, cand: dict, starts: np.ndarray, block_rows: int) -> float:
+    """t statistic of |e_ref| - |e_cand| over windows valid in both, averaged per block of start rows."""
+    ok = ref["valid"] & cand["valid"]
+    if ok.sum() < 4:
+        return 0.0
+    d = np.linalg.norm(ref["err"][ok], axis=1) - np.linalg.norm(cand["err"][ok], axis=1)
+    block = starts[ok] // max(block_rows, 1)
+    _, inv = np.unique(block, return_inverse=True)
+    means = np.bincount(inv, weights=d) / np.bincount(inv)
+    if len(means) < 3:
+        return 0.0
+    sd = float(np.std(means, ddof=1))
+    return float(np.mean(means) / (sd / np.sqrt(len(means)))) if sd > 0 else 0.0
+
+
+def verdict(result: dict, key: str) -> dict:
+    """{"effect": name or None, "status", "explanation"} from a diagnosis result (see :mod:`.diagnose`)."""
+    ref = result["reference"] or result["baseline"]
+    err, floor = ref["rollout_mm"][key], result["noise"]["floor_mm"][key]
+    horizon = f"{key} s"
+    excess = max(err - floor, 0.0) if err is not None and floor is not None else 0.0
+    prefix = _added_text(result, key)
+    best = result["ranking"][0] if result["ranking"] else None
+    if best is not None and err:
+        gain = err - best["rollout_mm"][key]
+        explained = gain / excess if excess > 0 else (1.0 if floor is None else 0.0)
+        if best["reduction"] >= MIN_REDUCTION and best["t_stat"] >= MIN_T and explained >= MIN_EXPLAINED:
+            left = best["rollout_mm"][key]
+            text = (f"{best['effect']} explains the error: refitted with it, the held-out error at {horizon} falls "
+                    f"from {err:.2f} to {left:.2f} mm ({best['reduction']:.0%}; t = {best['t_stat']:.1f}), "
+                    + (f"{min(explained, 1.0):.0%} of the excess over the noise floor ({floor:.2f} mm). "
+                       if floor is not None else "(no noise floor: the camera noise could not be estimated). ")
+                    + f"Fitted: {_params_text(best['params'])}.")
+            if floor is not None and left > (1 + AT_FLOOR) * floor:
+                text += (f" The remaining error is still {left / floor:.1f}x the noise floor: add it "
+                         f"(--add {best['effect']}) and diagnose again to look for a second effect.")
+            return {"effect": best["effect"], "status": "explained", "explanation": prefix + text}
+    if err is not None and floor is not None and err <= (1 + AT_FLOOR) * floor:
+        text = (f"the model is at the noise floor: its held-out error at {horizon} is {err:.2f} mm against "
+                f"{floor:.2f} mm that a perfect model would show with this camera noise; no effect is needed.")
+        return {"effect": None, "status": "noise_floor", "explanation": prefix + text}
+    clues = result.get("localisation", {}).get("clues", [])
+    best_text = (f" The best candidate, {best['effect']}, lowers it by {best['reduction']:.0%} "
+                 f"(t = {best['t_stat']:.1f}), which is not enough." if best else "")
+    floor_text = f"a noise floor of {floor:.2f} mm" if floor is not None else "an unknown noise floor"
+    text = (f"no listed effect explains the remaining error: {err:.2f} mm at {horizon} against {floor_text}."
+            f"{best_text} Clues: " + ("; ".join(clues) if clues else "none stand out") + ".")
+    return {"effect": None, "status": "unexplained", "explanation": prefix + text}
+
+
+def _added_text(result: dict, key: str) -> str:
+    added = result.get("added")
+    if not added:
+        return ""
+    before, after = added["before_mm"][key], added["rollout_mm"][key]
+    return (f"With {' + '.join(added['effects'])} added, the held-out error at {key} s "
+            f"went from {before:.2f} to {after:.2f} mm. For what remains: ")
+
+
+def _params_text(params: dict) -> str:
+    return ", ".join(f"{n.split('.', 1)[-1]} = {p['value']:.4g} +- "
+                     f"{'?' if p['std'] is None else format(p['std'], '.2g')} {p['unit']}".rstrip()
+                     for n, p in params.items())

@@ -1,0 +1,176 @@
+"""Force effects: extra forces [uN] added to the physical model and fitted jointly.
+
+Arguments of every force: p (n, 3) position [mm], v (n, 3) velocity [mm/s],
+u (n, 3) command omega [Hz], ``params`` (the effect's parameters by short
+name plus the host model's: ``k`` [uN/Hz], ``Cd0``, ``Cd1`` [uN s/mm]...).
+Returns (n, 3) [uN]. The tank is a cube of half-size :data:`TANK_HALF_MM`
+centred at the origin (the paper's 150 mm tank).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cosim.identify.effect import Effect, Param
+
+#: Half the tank's edge [mm]: walls at +-75 mm on every axis.
+TANK_HALF_MM = 75.0
+
+
+def _norm(a: np.ndarray) -> np.ndarray:
+    """(n, 1) Euclidean norms of the rows of a (n, 3)."""
+    return np.sqrt(np.einsum("ij,ij->i", a, a))[:, None]
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    """Rows of a (n, 3) normalised; zero rows stay zero."""
+    n = _norm(a)
+    return a / np.where(n > 1e-12, n, 1.0)
+
+
+def _sin_alpha(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(n, 1) sine of the angle of attack between the command u and the velocity v (0 if either vanishes)."""
+    cos = np.clip(np.einsum("ij,ij->i", _unit(u), _unit(v)), -1.0, 1.0)[:, None]
+    return np.sqrt(1.0 - cos * cos)
+
+
+def wall_distance_mm(p: np.ndarray) -> np.ndarray:
+    """(n,) distance from p (n, 3) [mm] to the nearest tank wall [mm], >= 0."""
+    return np.maximum(TANK_HALF_MM - np.max(np.abs(p), axis=1), 0.0)
+
+
+# ---------------------------------------------------------------- background flow
+
+
+def _background_flow(p, v, u, prm):
+    w = np.zeros_like(v)
+    w[:, 0], w[:, 1] = prm["w_x"], prm["w_y"]
+    cd = prm.get("Cd0", 0.0) * _sin_alpha(u, v) + prm.get("Cd1", 0.0)
+    return cd * w
+
+
+BACKGROUND_FLOW = Effect(
+    name="background_flow",
+    params=(Param("w_x", 0.0, -50.0, 50.0, "mm/s"), Param("w_y", 0.0, -50.0, 50.0, "mm/s")),
+    force=_background_flow,
+    doc="A uniform drift of the water (residual circulation, a slow pump): the drag acts on the velocity "
+        "relative to the water, -Cd (v - w), so the extra force is +Cd w with the model's drag coefficient "
+        "Cd = Cd0 sin(alpha) + Cd1 (Eq. 2). w = (w_x, w_y, 0) [mm/s]; a vertical drift is not fitted because "
+        "it is indistinguishable from the net weight F_vs already in the model.",
+)
+
+
+# ---------------------------------------------------------------- wall drag
+
+
+def _wall_drag(p, v, u, prm):
+    ell = prm["ell"]
+    gain = ell / (wall_distance_mm(p) + ell)
+    return -(prm["c"] * gain)[:, None] * v
+
+
+WALL_DRAG = Effect(
+    name="wall_drag",
+    params=(Param("c", 0.0, 0.0, 0.6, "uN s/mm"), Param("ell", 5.0, 0.5, 40.0, "mm")),
+    force=_wall_drag,
+    doc="Extra drag near a wall (lubrication and image-flow effects; Faxen and Brenner give a drag rise "
+        "~ a/h at a distance h from a plane wall): -c ell / (d + ell) v with d the distance from the "
+        "centre to the nearest wall of the 150 mm tank [mm], so the drag grows as 1/d away from the wall "
+        "and saturates at c [uN s/mm] at contact; ell [mm] is the fitted length scale.",
+    starts=({"c": 0.05, "ell": 2.0}, {"c": 0.05, "ell": 8.0}, {"c": 0.05, "ell": 25.0}),
+)
+
+
+# ---------------------------------------------------------------- step-out
+
+
+def _step_out(p, v, u, prm):
+    f = _norm(u)
+    fso = prm["f_so"]
+    slip = np.sqrt(np.maximum(f * f - fso * fso, 0.0))  # the mean spin is f - slip (Adler)
+    return -prm.get("k", 0.0) * slip * _unit(u)
+
+
+STEP_OUT = Effect(
+    name="step_out",
+    params=(Param("f_so", 100.0, 1.0, 100.0, "Hz"),),
+    force=_step_out,
+    doc="Step-out: above f_so = m B / (2 pi c_rot) the magnet cannot follow the field and slips; its mean "
+        "spin is f - sqrt(f^2 - f_so^2) instead of f, so the propulsion k omega loses "
+        "-k sqrt(|u|^2 - f_so^2) u_hat. f_so [Hz] is fitted (100 Hz = never steps out).",
+    starts=({"f_so": 6.0}, {"f_so": 9.0}, {"f_so": 12.0}, {"f_so": 16.0}, {"f_so": 22.0}, {"f_so": 30.0}),
+)
+
+
+# ---------------------------------------------------------------- gradient force
+
+_PAIR = ("b_x", "b_y", "b_z")
+_CROSS = ("c_xy", "c_xz", "c_yz")
+
+
+def _gradient_force(p, v, u, prm):
+    a = _unit(u)
+    on = (_norm(u) > 0.05).astype(float)  # the field is on when a spin is commanded
+    a2 = a * a
+    f = np.zeros_like(p)
+    for k, name in enumerate(_PAIR):  # pair k: (1 - a_k^2) b_k (2 x_k e_k - x_j e_j - x_l e_l)
+        shape = -p.copy()
+        shape[:, k] = 2.0 * p[:, k]
+        f += ((1.0 - a2[:, k]) * prm[name])[:, None] * shape
+    for (j, k), name in zip(((0, 1), (0, 2), (1, 2)), _CROSS):  # pairs j, k: a_j a_k c_jk (x_k e_j + x_j e_k)
+        g = (a[:, j] * a[:, k] * prm[name])
+        f[:, j] += g * p[:, k]
+        f[:, k] += g * p[:, j]
+    return on * f
+
+
+GRADIENT_FORCE = Effect(
+    name="gradient_force",
+    params=tuple(Param(n, 0.0, -1.0, 1.0, "uN/mm") for n in (*_PAIR, *_CROSS)),
+    force=_gradient_force,
+    doc="The magnetic gradient force (m . grad) B of three orthogonal coil pairs: a magnet locked to the "
+        "rotating field feels, averaged over a turn, m grad |B|, linear in position near the centre. "
+        "Pair k's field is axisymmetric, so (Laplace) |B_k| ~ 1 + a_k (x_k^2 - r^2 / 2), and it carries "
+        "the share 1 - u_k^2 of a field rotating about u_hat: F = sum_k (1 - u_k^2) b_k (2 x_k e_k - "
+        "x_j e_j - x_l e_l) + sum_{j<k} u_j u_k c_jk (x_k e_j + x_j e_k), b and c in uN/mm, while the "
+        "field is on (|u| > 0.05 Hz).",
+)
+
+
+# ---------------------------------------------------------------- anisotropic drag
+
+
+def _anisotropic_drag(p, v, u, prm):
+    a = _unit(u)
+    v_perp = v - np.einsum("ij,ij->i", v, a)[:, None] * a
+    return -prm["c"] * v_perp
+
+
+ANISOTROPIC_DRAG = Effect(
+    name="anisotropic_drag",
+    params=(Param("c", 0.0, -0.05, 0.5, "uN s/mm"),),
+    force=_anisotropic_drag,
+    doc="Anisotropic drag of an elongated body: moving broadside costs more than moving along its axis "
+        "(slender-body ratio up to 2). With the long axis along the command u, the extra force is "
+        "-c (v - (v . u_hat) u_hat), c [uN s/mm]; the paper's Cd0 sin(alpha) v is a cruder form.",
+)
+
+
+# ---------------------------------------------------------------- quadratic drag
+
+
+def _quadratic_drag(p, v, u, prm):
+    return -prm["c"] * _norm(v) * v
+
+
+QUADRATIC_DRAG = Effect(
+    name="quadratic_drag",
+    params=(Param("c", 0.0, 0.0, math.inf, "uN s^2/mm^2"),),
+    force=_quadratic_drag,
+    doc="Form drag at Reynolds numbers of 25-300: -c |v| v with c = rho Cd A / 2 [uN s^2/mm^2] "
+        "(water, Cd ~ 1, A ~ 5-15 mm^2 gives 2.5e-3-7.5e-3), on top of the model's linear drag.",
+)
+
+FORCE_EFFECTS = (BACKGROUND_FLOW, WALL_DRAG, STEP_OUT, GRADIENT_FORCE, ANISOTROPIC_DRAG, QUADRATIC_DRAG)

@@ -1,0 +1,123 @@
+"""The parts: the effect library and contract, the noise estimate and floor, the split."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.identify import synthetic as syn
+from cosim.identify.dataset import Dataset
+from cosim.identify.effect import check_effect, known_effects
+from cosim.identify.joint import JointModel
+from cosim.identify.noise import noise_sigma_mm
+from cosim.identify.timeline import Timeline
+from cosim.plugins import lookup
+
+LIBRARY = {"background_flow", "wall_drag", "step_out", "actuation_lag", "gradient_force", "anisotropic_drag",
+           "quadratic_drag", "sensor_latency"}
+
+
+def test_library_is_registered_and_valid():
+    known = known_effects()
+    assert LIBRARY <= set(known)
+    for effect in known.values():
+        assert check_effect(effect) is effect
+        assert len(effect.doc) > 80  # each documents its physics
+
+
+def _sample(n=50, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.normal(0, 30, (n, 3)), rng.normal(0, 15, (n, 3)), rng.normal(0, 8, (n, 3))
+
+
+def test_force_forms():
+    known = known_effects()
+    p, v, u = _sample()
+    base = {"k": 0.2, "Cd0": 0.0, "Cd1": 0.08, "Cl0": 0.0, "Fvs": -0.4, "Fmax": 0.0}
+    flow = known["background_flow"].force(p, v, u, {**base, "w_x": 2.0, "w_y": -1.0})
+    assert np.allclose(flow, [0.16, -0.08, 0.0])  # +Cd1 w
+    quad = known["quadratic_drag"].force(p, v, u, {**base, "c": 0.01})
+    assert np.allclose(quad, -0.01 * np.linalg.norm(v, axis=1, keepdims=True) * v)
+    wall = known["wall_drag"].force(np.array([[0.0, 0, 0], [70.0, 0, 0]]), np.ones((2, 3)), np.ones((2, 3)),
+                                    {**base, "c": 0.1, "ell": 5.0})
+    assert np.allclose(wall[:, 0], [-0.1 * 5 / 80, -0.1 * 5 / 10])  # grows as 1/d towards the wall
+    so = known["step_out"].force(p, v, np.array([[10.0, 0, 0]] * 50), {**base, "f_so": 6.0})
+    assert np.allclose(so[:, 0], -0.2 * 8.0)  # spin 10 - sqrt(100 - 36) = 2 Hz instead of 10
+    aniso = known["anisotropic_drag"].force(p, np.array([[1.0, 2.0, 0]] * 50), np.array([[5.0, 0, 0]] * 50),
+                                            {**base, "c": 0.1})
+    assert np.allclose(aniso, [0.0, -0.2, 0.0])  # only across the spin axis
+    g = known["gradient_force"].force(p, v, np.array([[0, 0, 8.0]] * 50), {**base, "b_x": 0.01, "b_y": 0.0,
+                                      "b_z": 0.0, "c_xy": 0.0, "c_xz": 0.0, "c_yz": 0.0})
+    assert np.allclose(g, 0.01 * np.column_stack([2 * p[:, 0], -p[:, 1], -p[:, 2]]))  # x pair carries the field
+
+
+def test_transforms():
+    known = known_effects()
+    u = np.zeros((40, 3))
+    u[10:, 0] = 10.0
+    lag = known["actuation_lag"].transform(u, 0.02, {"tau": 0.1})
+    assert lag[10, 0] < 2.0 and 9.0 < lag[-1, 0] < 10.0 and np.all(np.diff(lag[:, 0]) >= 0)
+    assert np.array_equal(known["actuation_lag"].transform(u, 0.02, {"tau": 0.0}), u)
+    traj = np.cumsum(np.ones((1, 8, 3)), axis=1)  # moving 1 mm per step
+    late = known["sensor_latency"].transform(traj, 0.02, {"delay": 1.5})
+    assert np.allclose(late[0, 3:], traj[0, 3:] - 1.5)
+    head = known["heading_lag"].transform(np.column_stack([np.ones(20), np.zeros(20), np.zeros(20)]) *
+                                          np.where(np.arange(20) < 5, 1, -1)[:, None] * 5, 0.02, {"tau": 0.05})
+    assert np.allclose(np.linalg.norm(head, axis=1), 5.0)  # direction lags, spin rate kept
+
+
+def test_saved_model_with_a_library_term_loads(tmp_path):
+    from cosim.identify.model import load_model
+    from cosim_plugins.models.physical import synthetic_plant
+
+    model = synthetic_plant()
+    model.save(tmp_path / "m.npz")
+    back = load_model(tmp_path / "m.npz")
+    assert back.params()["quadratic_drag.c"] == pytest.approx(0.0015)
+    x = np.array([[1.0, 2, 3, 10, -5, 2]])
+    u = np.array([[8.0, 1, 0]])
+    assert np.allclose(back.predict(x, u, 0.02), model.predict(x, u, 0.02))
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    """(dataset, plant): the plain paper model as the plant, camera noise 0.1 mm."""
+    physical = lookup("model", "physical")
+    plant = physical.from_params(syn.TRUE_PARAMS)
+    cases = syn.paper_cases()
+    cases = {k: cases[k] for k in ("circle_+0", "racetrack_+45")}
+    files = syn.write_cases(tmp_path_factory.mktemp("syn"), plant.predict, 1500, cases, seed=3,
+                            bias_hz=(0.0, 0.0, 2.4), defects=syn.Defects(noise_mm=0.1))
+    return Dataset.from_paths(files), plant
+
+
+def test_noise_estimate_and_floor_of_a_perfect_model(synthetic):
+    ds, plant = synthetic
+    tl = Timeline.from_dataset(ds)
+    sigma = noise_sigma_mm(tl)
+    assert np.allclose(sigma, 0.1, rtol=0.1)
+    jm = JointModel(plant)
+    starts = tl.window_starts(10, 0.6, rows=11)[::2]
+    ev = jm.evaluate(tl, starts, 10, {"0.2": 10, "1.0": 50}, sigma_mm=sigma)
+    for r in ev.values():  # the true model's error is its noise floor
+        err = np.mean(np.linalg.norm(r["err"][r["valid"]], axis=1))
+        assert err == pytest.approx(np.mean(r["floor"][r["valid"]]), rel=0.15)
+
+
+def test_time_block_split_keeps_halves_apart():
+    from cosim.identify.diagnose import BLOCK_S, split_logs
+
+
+    from dataclasses import dataclass
+
+    @dataclass
+    class L:
+        t_s: np.ndarray
+        p_mm: np.ndarray
+
+    t = np.arange(1500) * 0.02
+    log = L(t, np.ones((1500, 3)))
+    train, test, info = split_logs([log])
+    tr, te = np.isfinite(train[0].p_mm[:, 0]), np.isfinite(test[0].p_mm[:, 0])
+    assert not np.any(tr & te) and np.all(tr | te)
+    assert te.mean() == pytest.approx(1 / 3, abs=0.05) and info["block_s"] == BLOCK_S
