@@ -91,18 +91,24 @@ def numeric_axes(rows: list[dict]) -> list[str]:
             and len({r[k] for r in rows}) > 1]
 
 
+def _groups(rows: list[dict], axis: str) -> tuple[list[str], dict[tuple, list[dict]]]:
+    """The other labels, and the rows grouped by their values, each group sorted along ``axis``."""
+    others = [k for k in label_keys(rows) if k != axis]
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r[k] for k in others), []).append(r)
+    return others, {key: sorted(members, key=lambda r: r[axis]) for key, members in groups.items()}
+
+
 def largest_below(rows: list[dict], threshold_mm: float) -> list[dict]:
     """Per group of the other labels, the largest value of each numeric axis whose mean
     tracking error stays below ``threshold_mm`` (and every smaller value's too); None if none does."""
     out = []
     for axis in numeric_axes(rows):
-        others = [k for k in label_keys(rows) if k != axis]
-        groups: dict[tuple, list[dict]] = {}
-        for r in rows:
-            groups.setdefault(tuple(r[k] for k in others), []).append(r)
+        others, groups = _groups(rows, axis)
         for key, members in groups.items():
             best = None
-            for r in sorted(members, key=lambda r: r[axis]):
+            for r in members:
                 e = r.get("tracking_error_mm")
                 if not e or r["status"] != "ok" or e["mean"] >= threshold_mm:
                     break
@@ -121,13 +127,9 @@ def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = Non
 
     files = []
     for axis in numeric_axes(rows):
-        others = [k for k in label_keys(rows) if k != axis]
-        groups: dict[tuple, list[dict]] = {}
-        for r in rows:
-            groups.setdefault(tuple(r[k] for k in others), []).append(r)
+        others, groups = _groups(rows, axis)
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for key, members in groups.items():
-            members = sorted(members, key=lambda r: r[axis])
             x = [r[axis] for r in members]
             y = [(r.get("tracking_error_mm") or {}).get("mean", np.nan) for r in members]
             ax.plot(x, y, marker="o", label=", ".join(f"{k}={v}" for k, v in zip(others, key)) or "run")

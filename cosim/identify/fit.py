@@ -84,7 +84,7 @@ def save_models(models: dict, summary: dict, out_dir: str | Path) -> Path:
     for name, model in models.items():
         model.save(out / f"{name}.npz")
     path = out / SUMMARY
-    path.write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")
+    path.write_text(json.dumps(summary, indent=2, default=json_default) + "\n")
     return path
 
 
@@ -109,7 +109,8 @@ def load_models(model_dir: str | Path) -> dict:
     return {f.stem: load_model(f) for f in files}
 
 
-def _json_default(obj):
+def json_default(obj):
+    """``json.dumps(default=...)`` for numpy scalars and arrays."""
     import numpy as np
 
     if isinstance(obj, np.generic):

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.identify.fit import json_default
 from cosim.identify.localise import FEATURES
 
 MAX_LOG_PLOTS = 6
@@ -30,7 +31,7 @@ def write_outputs(diag, out_dir) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = [out / "diagnosis.json"]
-    files[0].write_text(json.dumps(diag.result, indent=2, default=_json_default) + "\n")
+    files[0].write_text(json.dumps(diag.result, indent=2, default=json_default) + "\n")
     files += write_plots(diag, out)
     files.append(write_report(diag, out, [f.name for f in files if f.suffix == ".png"]))
     files.append(write_recording(diag, out / "diagnosis.rrd"))
@@ -217,10 +218,3 @@ def _params(params: dict) -> str:
 def _f(v) -> str:
     return "-" if v is None else f"{v:.3f}"
 
-
-def _json_default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

@@ -8,7 +8,12 @@ import numpy as np
 
 from cosim import Port
 
-#: Every controller outputs the rotation vector and the wall time its computation took.
+#: Every path-following controller reads the estimator's position and velocity.
+CONTROLLER_INPUTS = (
+    Port("position", (3,), "m", "estimated position (NaN: none yet)"),
+    Port("velocity", (3,), "m/s", "estimated velocity"),
+)
+#: Every controller outputs the rotation vector and the CPU time its computation took.
 CONTROLLER_OUTPUTS = (
     Port("omega", (3,), "rad/s", "commanded rotation vector of the field"),
     Port("solve_time", (), "s", "wall time of this step's computation (diagnostic only)"),

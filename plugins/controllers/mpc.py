@@ -44,9 +44,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, ComponentError, Port
+from cosim import Component, ComponentError
 from cosim.params import Param, read_params
-from cosim_plugins.controllers.common import CONTROLLER_OUTPUTS, SolveTimer
+from cosim_plugins.controllers.common import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, SolveTimer
 from cosim_plugins.controllers.mpc_qp import CondensedMPC, CvxpyMPC, MPCSpec, clip_first
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 
@@ -130,10 +130,7 @@ class MPCController(Component):
     """Eq. 15 on a linear(ised) model, warm-started OSQP every step; pure-pursuit reference."""
 
     uses_path = True
-    inputs = (
-        Port("position", (3,), "m", "estimated position (NaN: none yet)"),
-        Port("velocity", (3,), "m/s", "estimated velocity"),
-    )
+    inputs = CONTROLLER_INPUTS
     outputs = CONTROLLER_OUTPUTS
 
     @classmethod

@@ -43,9 +43,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, ComponentError, Port
+from cosim import Component, ComponentError
 from cosim.params import Param, read_params
-from cosim_plugins.controllers.common import CONTROLLER_OUTPUTS, SolveTimer
+from cosim_plugins.controllers.common import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 
 PARAMS = {
@@ -78,10 +78,7 @@ class MRACController(Component):
     """Direct MRAC of the velocity under a pure-pursuit outer loop: adaptive inverse gain + bias, projected."""
 
     uses_path = True
-    inputs = (
-        Port("position", (3,), "m", "estimated position (NaN: none yet)"),
-        Port("velocity", (3,), "m/s", "estimated velocity"),
-    )
+    inputs = CONTROLLER_INPUTS
     outputs = CONTROLLER_OUTPUTS
 
     @classmethod

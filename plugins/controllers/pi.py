@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, Port
+from cosim import Component
 from cosim.params import Param, read_params
-from cosim_plugins.controllers.common import CONTROLLER_OUTPUTS, SolveTimer
+from cosim_plugins.controllers.common import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 
 PARAMS = {
@@ -33,10 +33,7 @@ class PIController(Component):
     """Pure pursuit (look-ahead 9 mm) + PI on the cross-track error, 3D."""
 
     uses_path = True
-    inputs = (
-        Port("position", (3,), "m", "estimated position (NaN: none yet)"),
-        Port("velocity", (3,), "m/s", "estimated velocity"),
-    )
+    inputs = CONTROLLER_INPUTS
     outputs = CONTROLLER_OUTPUTS
 
     def setup(self, params, rng):

@@ -169,7 +169,6 @@ def fit_process_noise(model, dataset, r_mm2: np.ndarray, dt_s: float, drift_tau_
     drift = drift_tau_s is not None
     phi = drift_decay(dt_s, drift_tau_s) if drift else None
     F = transition_jacobian(A, dt_s, phi)
-    n = 6
     P0 = frame_state_covariance(r_mm2, dt_s)
     r_v = 2.0 * r_mm2 / dt_s**2  # noise of a measured (backward-difference) velocity
     n_unknown = 9 if drift else 6  # q_p, q_v (3 each) and the drift's stationary variance s_d

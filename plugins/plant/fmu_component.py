@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import ctypes
 import shutil
-import tempfile
 from typing import Any, Mapping
 
 import numpy as np
