@@ -74,17 +74,12 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
     return zenoh.open(conf)
 
 
-def publisher(session: zenoh.Session, key: str, express: bool = True) -> zenoh.Publisher:
-    """A publisher for lockstep traffic: reliable and blocking instead of dropping under
-    congestion (zenoh's default drops).
-
-    Control messages are ``express`` (sent at once); port values are not, so a
-    component's several outputs of one step leave in one batch (a quarter of
-    the cost per put over TCP), flushed by the express reply that follows them
-    on the same link.
-    """
+def publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:
+    """A publisher for lockstep traffic: reliable, blocking instead of dropping under
+    congestion (zenoh's default drops), and express: every message is a step some
+    consumer waits for, so it leaves at once instead of waiting to be batched."""
     return session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK,
-                                     reliability=zenoh.Reliability.RELIABLE, express=express)
+                                     reliability=zenoh.Reliability.RELIABLE, express=True)
 
 
 def port_key(run_id: str, component: str, port: str) -> str:

@@ -55,8 +55,7 @@ class Stepper:
         self._inputs = [(e.dst_port, e.src, e.src_port, wiring.periods[e.src], e.delay)
                         for e in wiring.edges_into(name)]
         self._ports = {p.name: p.shape for p in wiring.outputs[name]}
-        self._pubs = {p: bus.publisher(session, bus.port_key(run_id, name, p), express=False)
-                      for p in self._ports}
+        self._pubs = {p: bus.publisher(session, bus.port_key(run_id, name, p)) for p in self._ports}
 
     def publish_initial(self) -> None:
         self._publish(-1, self.component.initial_outputs())
