@@ -50,25 +50,28 @@ class PortCache(PortStore):
 
     def __init__(self, session: zenoh.Session, run_id: str, ports: list[tuple[str, str]]):
         super().__init__(ports)
-        self._subs = [(p, session.declare_subscriber(bus.port_key(run_id, *p))) for p in ports]
+        self._subs = {p: session.declare_subscriber(bus.port_key(run_id, *p)) for p in ports}
 
-    def _drain(self) -> None:
-        """Move everything that has arrived on any port into the store."""
-        for key, sub in self._subs:
-            while (sample := sub.try_recv()) is not None:
-                self.store(key, *bus.decode_array(sample.payload.to_bytes(), sample.attachment.to_bytes()))
+    def _drain(self, key: tuple[str, str]) -> None:
+        """Move what has arrived on one port into the store."""
+        sub = self._subs[key]
+        while (sample := sub.try_recv()) is not None:
+            self.store(key, *bus.decode_array(sample.payload.to_bytes(), sample.attachment.to_bytes()))
 
     def has(self, comp: str, port: str, stamp: int) -> bool:
-        self._drain()
+        self._drain((comp, port))
         return super().has(comp, port, stamp)
 
     def get(self, comp: str, port: str, stamp: int, timeout_s: float) -> np.ndarray:
         """Waits up to ``timeout_s`` for the value (see :func:`cosim.bus.poll`)."""
-        values = self._values[(comp, port)]
+        key = (comp, port)
+        values = self._values[key]
+        if stamp not in values:
+            self._drain(key)
         if stamp not in values:
 
             def fetch():
-                self._drain()
+                self._drain(key)
                 return values.get(stamp)
 
             if bus.poll(fetch, timeout_s) is None:
@@ -76,9 +79,9 @@ class PortCache(PortStore):
         return values[stamp]
 
     def close(self) -> None:
-        for _, sub in self._subs:
+        for sub in self._subs.values():
             sub.undeclare()
-        self._subs = []
+        self._subs = {}
 
 
 def expected_stamp(tick: int, period: int, delay: int) -> int:

@@ -73,7 +73,9 @@ def table3(report: dict) -> list[str]:
         lines += [f"**{split}**", "", *_table(
             ["model", "X", "Y", "Z", "norm", "paper X", "paper Y", "paper Z", "paper norm",
              "rollout 0.1 s", "rollout 0.42 s", "rollout 1.0 s"], rows)]
-    lines += ["Training: the 12 training logs; test: the same 12 paths recorded again with another "
+    lines += [f"![{p}]({p})" for p in report["ours"]["table3"].get("plots", [])
+              if "/one_step_" not in p]  # the one-step plots stay in the folder, unlinked
+    lines += ["", "Training: the 12 training logs; test: the same 12 paths recorded again with another "
               "seed (unseen noise and trajectories); validation: the continuously rotating circle. "
               "One-step errors are dominated by the camera noise in our emulator (0.5 px of 0.19 mm per "
               "camera), which the paper's lab shares in size; the open-loop rollouts (0.1, 0.42, 1.0 s) "
@@ -104,7 +106,8 @@ def fig6(report: dict) -> list[str]:
              r.get("status", "")] for r in _sweep(result)]
     best_rows = [[str(b.get("estimator")), NAMES.get(b.get("model"), str(b.get("model"))),
                   _n(b.get("largest_below"), 2)] for b in result.get("largest_below_threshold", [])]
-    plots = [f"![tracking error against the feedback interval](runs/feedback_sweep/{p})" for p in result.get("plots", [])]
+    plots = [f"![tracking error against the feedback interval](runs/feedback_sweep/{p})"
+             for p in result.get("plots", [])]
     largest = {(b.get("estimator"), b.get("model")): b.get("largest_below")
                for b in result.get("largest_below_threshold", [])}
     none = largest.get(("none", "none"))
@@ -139,6 +142,7 @@ def paths(report: dict) -> list[str]:
                          f"{p[0]} ± {p[1]}" if p else "not reported", _n(s.get("median"), 3), _n(s.get("p99"), 3)])
         lines += [f"**{title}**", "", *_table(["controller", "ours: error [mm]", "ours: max [mm]",
                                                "paper: error [mm]", "solve median [ms]", "solve p99 [ms]"], rows)]
+        lines += [f"![{p}]({p})" for p in report["ours"][key].get("plots", [])] + [""]
     m = report["paper"]["mpc_solve_ms"]
     lines += [f"The paper's MPC (MATLAB fmincon, SQP) took {m[0]} ± {m[1]} ms per solve; ours is the "
               "same objective as a condensed quadratic program set up once and solved warm-started by "

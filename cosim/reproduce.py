@@ -93,13 +93,53 @@ def _train(dataset, out_dir: Path, quick: bool) -> dict:
 
 
 def _compare(dataset, out_dir: Path) -> dict:
+    """Table III on each split; plots (and a rerun overlay) of predictions on the validation log."""
     from cosim.identify.compare import compare
     from cosim.identify.dataset import Dataset
     from cosim.identify.fit import load_models
+    from cosim.identify.plots import write_plots
 
     models = load_models(out_dir / "models")
-    return {split: compare(models, Dataset.from_paths(getattr(dataset, split)))
-            for split in ("training", "test", "validation")}
+    result = {}
+    for split in ("training", "test", "validation"):
+        data = Dataset.from_paths(getattr(dataset, split))
+        result[split] = compare(models, data)
+    files = write_plots(models, data, result["validation"], out_dir / "plots" / "table3")
+    result["plots"] = [str(f.relative_to(out_dir)) for f in files if f.suffix == ".png"]
+    return result
+
+
+def _trajectory_plots(key: str, out_dir: Path) -> list[str]:
+    """Fig. 3 / Fig. 7 analogs: each controller's true path over the reference, top and side views."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from cosim.paths import make_path
+
+    scenario = yaml.safe_load((out_dir / "scenarios" / f"controllers_{key}.yaml").read_text())
+    path = make_path(scenario["path"]["plugin"], scenario["path"].get("params", {})).points(0.0) * 1e3
+    runs = sorted((out_dir / "runs" / f"controllers_{key}" / "runs").glob("*"))
+    fig, axes = plt.subplots(2, len(runs), figsize=(4 * len(runs), 7), squeeze=False)
+    for col, run_dir in enumerate(runs):
+        truth = np.load(run_dir / "trace.npz")["plant.position"] * 1e3
+        for row, (i, j) in enumerate(((0, 1), (0, 2))):
+            ax = axes[row][col]
+            ax.plot(path[:, i], path[:, j], "k--", lw=1, label="path")
+            ax.plot(truth[:, i], truth[:, j], lw=0.8, label="swimmer")
+            ax.set_aspect("equal")
+            ax.set_xlabel(f"{'xyz'[i]} [mm]")
+            ax.set_ylabel(f"{'xyz'[j]} [mm]")
+        axes[0][col].set_title(run_dir.name.split("_", 1)[-1])
+    axes[0][0].legend(fontsize=8)
+    fig.tight_layout()
+    target = out_dir / "plots" / f"paths_{key}.png"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(target, dpi=100)
+    plt.close(fig)
+    return [str(target.relative_to(out_dir))]
 
 
 def reproduce(out_dir: Path, quick: bool = False) -> dict:
@@ -117,8 +157,10 @@ def reproduce(out_dir: Path, quick: bool = False) -> dict:
         ("table3", lambda: _compare(results["dataset"], out_dir)),
         ("table4", lambda: _run_scenario("realtime_prediction.yaml", out_dir, quick)),
         ("fig6", lambda: _run_scenario("feedback_sweep.yaml", out_dir, quick)),
-        ("racetrack", lambda: _run_scenario("controllers_racetrack.yaml", out_dir, quick)),
-        ("helix", lambda: _run_scenario("controllers_helix.yaml", out_dir, quick)),
+        ("racetrack", lambda: {**_run_scenario("controllers_racetrack.yaml", out_dir, quick),
+                               "plots": _trajectory_plots("racetrack", out_dir)}),
+        ("helix", lambda: {**_run_scenario("controllers_helix.yaml", out_dir, quick),
+                           "plots": _trajectory_plots("helix", out_dir)}),
     ]
     for i, (key, step) in enumerate(steps, 1):
         _say(f"[{i}/{len(steps)}] {key} ...")
