@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from cosim import Port
+from cosim import Component, Port
 
 #: Every path-following controller reads the estimator's position and velocity.
 CONTROLLER_INPUTS = (
@@ -18,6 +18,14 @@ CONTROLLER_OUTPUTS = (
     Port("omega", (3,), "rad/s", "commanded rotation vector of the field"),
     Port("solve_time", (), "s", "wall time of this step's computation (diagnostic only)"),
 )
+
+
+class PathController(Component):
+    """Base of the path-following controllers: they get the scenario's path and share ports."""
+
+    uses_path = True
+    inputs = CONTROLLER_INPUTS
+    outputs = CONTROLLER_OUTPUTS
 
 
 class SolveTimer:

@@ -44,9 +44,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, ComponentError
+from cosim import ComponentError
 from cosim.params import Param, read_params
-from cosim_plugins.controllers.common import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, SolveTimer
+from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.mpc_qp import CondensedMPC, CvxpyMPC, MPCSpec, clip_first
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 
@@ -126,12 +126,8 @@ def model_matrices(model, dt_s: float, hover_hz: float = 0.0):
     return An, Bn, cn
 
 
-class MPCController(Component):
+class MPCController(PathController):
     """Eq. 15 on a linear(ised) model, warm-started OSQP every step; pure-pursuit reference."""
-
-    uses_path = True
-    inputs = CONTROLLER_INPUTS
-    outputs = CONTROLLER_OUTPUTS
 
     @classmethod
     def validate_params(cls, params):
@@ -142,9 +138,7 @@ class MPCController(Component):
         p = self.p = check_params(params)
         q, r, ru = (_weights(p, key) for key in ("q", "r", "ru"))
         self.dt = params["dt"]
-        self.path = params.get("path")
-        if self.path is None:
-            raise ComponentError("controller.mpc needs a path in the scenario")
+        self.path = params["path"]
         self.pursuit = PurePursuit(self.path, p["lookahead_mm"] * 1e-3, p["lookahead_gain_s"])
         A, B, c = self._load_model(p)
         self.spec = MPCSpec(A=A, B=B, c=c, horizon=int(p["horizon"]), q=q, r=r, ru=ru, f_max_hz=p["f_max_hz"],

@@ -43,9 +43,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, ComponentError
+from cosim import ComponentError
 from cosim.params import Param, read_params
-from cosim_plugins.controllers.common import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, SolveTimer
+from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 
 PARAMS = {
@@ -74,12 +74,8 @@ def check_params(params) -> dict:
     return p
 
 
-class MRACController(Component):
+class MRACController(PathController):
     """Direct MRAC of the velocity under a pure-pursuit outer loop: adaptive inverse gain + bias, projected."""
-
-    uses_path = True
-    inputs = CONTROLLER_INPUTS
-    outputs = CONTROLLER_OUTPUTS
 
     @classmethod
     def validate_params(cls, params):
@@ -87,8 +83,6 @@ class MRACController(Component):
 
     def setup(self, params, rng):
         p = self.p = check_params(params)
-        if params.get("path") is None:
-            raise ComponentError("controller.mrac needs a path in the scenario")
         self.dt = params["dt"]
         self.pursuit = PurePursuit(params["path"], p["lookahead_mm"] * 1e-3, p["lookahead_gain_s"])
         self.blend = 1.0 - np.exp(-p["a_m"] * self.dt)

@@ -12,9 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component
 from cosim.params import Param, read_params
-from cosim_plugins.controllers.common import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, SolveTimer
+from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 
 PARAMS = {
@@ -29,12 +28,8 @@ PARAMS = {
 }
 
 
-class PIController(Component):
+class PIController(PathController):
     """Pure pursuit (look-ahead 9 mm) + PI on the cross-track error, 3D."""
-
-    uses_path = True
-    inputs = CONTROLLER_INPUTS
-    outputs = CONTROLLER_OUTPUTS
 
     def setup(self, params, rng):
         p = read_params(params, PARAMS)
