@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import shutil
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -77,7 +78,13 @@ class FmuPlant(Component):
         # import its own module twice (the package imports this file)
         from cosim_plugins.plant.build import ensure_fmu
 
-        fmu_path = ensure_fmu(params.pop("fmu", None))
+        given = params.pop("fmu", None)
+        if given is None:
+            fmu_path = ensure_fmu()  # the project's plant, built on first use
+        else:  # a user's FMU is used as it is, never built in its place
+            fmu_path = Path(given)
+            if not fmu_path.is_file():
+                raise ComponentError(f"plant.fmu: fmu={given}: no such FMU file")
         self.dt = float(params.pop("dt", 0.02))
         md = read_model_description(str(fmu_path))
         variables = {v.name: v for v in md.modelVariables}

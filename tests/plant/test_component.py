@@ -97,3 +97,13 @@ def test_parameter_types_are_checked(plant_fmu):
     with pytest.raises(ComponentError, match="mass"):
         p.setup({"fmu": plant_fmu, "mass": "heavy"}, np.random.default_rng(0))
     p.close()
+
+
+def test_a_missing_fmu_file_is_a_clear_error(tmp_path):
+    from cosim import ComponentError
+    from cosim_plugins.plant.fmu_component import FmuPlant
+
+    missing = tmp_path / "lab_plant.fmu"
+    with pytest.raises(ComponentError, match="no such FMU file"):
+        FmuPlant().setup({"fmu": str(missing), "dt": 0.02}, None)
+    assert not missing.exists()  # nothing was built in its place
