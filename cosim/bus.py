@@ -5,9 +5,12 @@ Keys (``run_id`` and component names are single key chunks):
 * ``cosim/{run_id}/{component}/{port}``: a port value, published by its
   component once per step it takes;
 * ``cosim/{run_id}/alive/{component}``: liveliness token of a running node;
-* ``cosim/{run_id}/ctl/tick``: the scheduler's lockstep tick, to every node;
-* ``cosim/{run_id}/ctl/{component}/cmd|reply``: set-up commands to one node
-  and every node's replies (see :mod:`cosim.node`).
+* ``cosim/{run_id}/ctl/tick``: the scheduler's credits (the ticks nodes may
+  step) and set-up checks, to every node;
+* ``cosim/{run_id}/ctl/{component}/cmd|reply``: commands to one node and every
+  node's replies (see :mod:`cosim.node`); replies report steps with their
+  outputs, so the scheduler records a distributed run without subscribing
+  to every port.
 
 Arrays travel as raw little-endian float64 bytes; the attachment carries the
 tick index (int64, little-endian) and the shape (int32 each), so a consumer
@@ -55,22 +58,29 @@ def poll(fetch: Callable[[], _T | None], timeout_s: float) -> _T | None:
     return None
 
 
-def open_session(listen: list[str] | None = None, connect: list[str] | None = None,
-                 mode: str = "peer") -> zenoh.Session:
+def open_session(listen: list[str] | None = None, connect: list[str] | None = None) -> zenoh.Session:
     """Open a zenoh session.
 
     With no endpoints this is the embedded default: an in-process peer with
     multicast scouting off, so nothing leaves the process and no router is
-    needed. For a run spread over processes the scheduler opens a
-    ``"router"`` session listening on an explicit endpoint (e.g.
-    ``"tcp/127.0.0.1:7447"``) and each node a ``"client"`` session connecting
-    to it; the router forwards between nodes.
+    needed. For a run spread over processes every process opens a ``"peer"``
+    session that listens on an endpoint of its own (e.g.
+    ``"tcp/127.0.0.1:7447"``) and connects to the endpoints of the processes
+    started before it: a full mesh, so a port value goes straight from its
+    producer's process to its consumer's. Peers forward nothing for others and
+    gossip is off, so the links are exactly the ones given. They use zenoh's
+    low-latency transport (no QoS priorities, no batching): every message is a
+    step someone waits for.
     """
     conf = zenoh.Config()
-    conf.insert_json5("mode", json.dumps(mode))
+    conf.insert_json5("mode", '"peer"')
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("listen/endpoints", json.dumps(list(listen or [])))
     conf.insert_json5("connect/endpoints", json.dumps(list(connect or [])))
+    if listen or connect:  # every process of a run must agree on the transport
+        conf.insert_json5("scouting/gossip/enabled", "false")
+        conf.insert_json5("transport/unicast/lowlatency", "true")
+        conf.insert_json5("transport/unicast/qos/enabled", "false")
     return zenoh.open(conf)
 
 
@@ -112,6 +122,30 @@ def decode_array(payload: bytes, attachment: bytes) -> tuple[int, np.ndarray]:
     tick, ndim = _HEAD.unpack_from(attachment)
     shape = struct.unpack_from(f"<{ndim}i", attachment, _HEAD.size)
     return tick, np.frombuffer(payload, dtype=_F64).reshape(shape)
+
+
+def encode_reply(header: dict, values: list[np.ndarray] = ()) -> tuple[bytes, bytes]:
+    """``(payload, attachment)`` of a node's reply: the raw float64 bytes of
+    ``values`` one after another (see :class:`ValueLayout`), and ``header`` as JSON."""
+    return b"".join(np.asarray(v, dtype=_F64).tobytes() for v in values), encode_json(header)
+
+
+class ValueLayout:
+    """Where each of a fixed list of arrays lies in the payload of :func:`encode_reply`."""
+
+    def __init__(self, shapes: list[tuple[int, ...]]):
+        sizes = [int(np.prod(shape)) for shape in shapes]
+        ends = np.cumsum(sizes, dtype=int).tolist()
+        self.size = sum(sizes)
+        self._slices = [(end - size, end, shape) for end, size, shape in zip(ends, sizes, shapes)]
+
+    def split(self, payload: bytes, count: int = 1) -> list[list[np.ndarray]]:
+        """The arrays of ``count`` such lists laid end to end in one payload (read-only views)."""
+        flat = np.frombuffer(payload, dtype=_F64)
+        if flat.size != count * self.size:
+            raise ValueError(f"reply holds {flat.size} values, expected {count} x {self.size}")
+        return [[flat[base + start:base + end].reshape(shape) for start, end, shape in self._slices]
+                for base in range(0, flat.size, self.size)]
 
 
 def encode_json(obj) -> bytes:

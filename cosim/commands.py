@@ -42,7 +42,10 @@ def add_commands(sub) -> None:
     p.add_argument("scenario", type=Path)
     p.add_argument("--run-id", required=True)
     p.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
-                   help="zenoh endpoint of the scheduler, e.g. tcp/127.0.0.1:7447")
+                   help="zenoh endpoint of the scheduler, e.g. tcp/127.0.0.1:7447, and (repeated) of "
+                        "every node started before this one")
+    p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                   help="endpoint the nodes started after this one connect to, e.g. tcp/0.0.0.0:7448")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.set_defaults(func=cmd_node)
 
@@ -124,7 +127,7 @@ def cmd_node(args) -> int:
     if args.component not in scenario.components:
         raise UserError(f"no component {args.component!r} in {args.scenario} "
                         f"(have: {', '.join(scenario.components)})")
-    return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect)
+    return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen)
 
 
 def add_dataset_command(sub) -> None:

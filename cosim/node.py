@@ -2,59 +2,157 @@
 
 The node loads the same scenario file (same overrides) as the scheduler,
 sets its component up identically (same parameters, same seeded RNG),
-connects to the scheduler's endpoint as a zenoh client, declares its
-liveliness token and serves, from one event queue fed by its subscribers:
+opens a zenoh peer session linked to the scheduler and to the other nodes,
+declares its liveliness token and serves, right in its subscribers'
+callbacks (one lock around them; the main thread only waits):
 
-* ticks on ``cosim/{run}/ctl/tick``: when the tick is due for it (its
-  period) and its inputs stamped for that tick have arrived: step, publish
-  the outputs, reply; a ``check`` tick (set-up) asks which inputs' initial
-  values have not arrived yet;
+* port values from its producers: stored by their tick stamp;
+* on ``cosim/{run}/ctl/tick``: a credit ``{"until": K}`` lets it step every
+  tick ``k < K`` that is due for it (its period) as soon as its inputs
+  stamped for ``k`` have arrived: step, publish the outputs; a ``check``
+  (set-up) asks which inputs' initial values have not arrived yet;
 * commands on ``cosim/{run}/ctl/{name}/cmd``: ``init`` (publish the initial
-  outputs), ``stop``.
+  outputs), ``flush`` (report the steps held back, even none), ``stop``.
 
-Replies go to ``cosim/{run}/ctl/{name}/reply`` as
-``{"name", "tick", "phase", "ok"[, "error"]}``.
+Replies go to ``cosim/{run}/ctl/{name}/reply``: a JSON attachment and the
+outputs as the payload (see :func:`cosim.bus.encode_reply`). Steps are
+reported ``REPLY_BATCH`` at a time, ``{"name", "ticks": [...], "ok": true}``
+with each step's outputs in turn, and whenever the node runs out of credit;
+set-up phases and failures as ``{"name", "tick", "phase", "ok"[, "error",
+"fault"]}`` (a fault with the outputs of its step).
 """
 
 from __future__ import annotations
 
-import queue
 import sys
-from collections import deque
+import threading
+import time
+
+import zenoh
 
 from cosim import bus
 from cosim.component import ComponentFault
 from cosim.portcache import PortStore, expected_stamp
 from cosim.scenario import Scenario
+from cosim.scheduler import REPLY_BATCH, WINDOW
 from cosim.stepper import Stepper, setup_component
 from cosim.wiring import Wiring
 
 IDLE_TIMEOUT_S = 120.0
 
 
-def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str]) -> int:
-    """Serve component ``name`` until told to stop; returns an exit status."""
-    session = bus.open_session(connect=connect, mode="client")
+class _Node:
+    """A set-up component's event handling. Handlers run under one lock, except
+    ``stop`` and ``flush``, which must work past a hung step.
+
+    ``edges``: ``(producer, port, producer's period, delay)`` of each input.
+    """
+
+    def __init__(self, stepper: Stepper, store: PortStore, edges: list[tuple[str, str, int, int]],
+                 period: int, dt_s: float, reply):
+        self.stepper, self.store, self.edges = stepper, store, edges
+        self.period, self.dt_s, self.reply = period, dt_s, reply
+        self.lock = threading.Lock()
+        self.stopped = threading.Event()
+        self.last_heard = time.monotonic()
+        self.next_tick = 0  # the next tick to step (or skip, if not due)
+        self.until = 0  # ticks below this are granted
+        self.failed = False
+        self.done_ticks: list[int] = []  # steps not reported yet, and their outputs
+        self.done_values: list = []
+        self.done_lock = threading.Lock()  # held briefly: a flush reports even past a hung step
+
+    def on_data(self, key: tuple[str, str], sample: zenoh.Sample) -> None:
+        tick, value = bus.decode_array(sample.payload.to_bytes(), sample.attachment.to_bytes())
+        with self.lock:
+            self.store.store(key, tick, value)
+            self._advance()
+
+    def on_tick(self, sample: zenoh.Sample) -> None:
+        msg = bus.decode_json(sample.payload.to_bytes())
+        with self.lock:
+            self.last_heard = time.monotonic()
+            if msg.get("check"):
+                missing = [f"{s}.{p}" for s, p, _, _ in self.edges if not self.store.has(s, p, -1)]
+                self.reply(-1, "check", missing=missing)
+            else:
+                self.until = max(self.until, msg["until"])
+                self._advance()
+
+    def on_cmd(self, sample: zenoh.Sample) -> None:
+        cmd = bus.decode_json(sample.payload.to_bytes())["cmd"]
+        if cmd == "stop":  # stop and flush not under the lock: a hung step holds it
+            self.stopped.set()
+        elif cmd == "flush":
+            self._report(phase="flush")
+        elif cmd == "init":
+            with self.lock:
+                self.last_heard = time.monotonic()
+                self.stepper.publish_initial()
+                self.reply(-1, "init", values=self.stepper.last_outputs)
+
+    def _inputs_ready(self, tick: int) -> bool:
+        return all(self.store.has(src, port, expected_stamp(tick, per, delay))
+                   for src, port, per, delay in self.edges)
+
+    def _report(self, phase: str | None = None) -> None:
+        """Reply with the steps not reported yet (a ``flush`` reply even with none)."""
+        with self.done_lock:
+            if self.done_ticks or phase:
+                self.reply(self.done_ticks[-1] if self.done_ticks else -1, phase, ticks=self.done_ticks,
+                           values=self.done_values)
+                self.done_ticks, self.done_values = [], []
+
+    def _advance(self) -> None:
+        """Step every granted tick whose inputs are in, in order; stop at the first that waits."""
+        while self.next_tick < self.until and not (self.failed or self.stopped.is_set()):
+            tick = self.next_tick
+            if tick % self.period:
+                self.next_tick += 1
+                continue
+            if not self._inputs_ready(tick):
+                return
+            self.next_tick += 1
+            t = tick * self.dt_s
+            try:
+                self.stepper.step(tick, t)
+            except ComponentFault as exc:  # its outputs (made safe) were published
+                self.failed = True
+                self._report()
+                self.reply(tick, error=str(exc), fault=f"{exc} (t = {t:.3f} s)", values=self.stepper.last_outputs)
+                return
+            except Exception as exc:  # the component's failure goes to the scheduler with its text
+                self.failed = True
+                self._report()
+                self.reply(tick, error=f"failed at t = {t:.3f} s: {type(exc).__name__}: {exc}")
+                return
+            with self.done_lock:
+                self.done_ticks.append(tick)
+                self.done_values.extend(self.stepper.last_outputs)
+                full = len(self.done_ticks) >= REPLY_BATCH
+            if full:
+                self._report()
+        if not self.failed:  # out of credit: the scheduler waits for these
+            self._report()
+
+
+def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str],
+          listen: list[str]) -> int:
+    """Serve component ``name`` until told to stop; returns an exit status.
+
+    ``connect``: the scheduler's endpoint and those of the nodes started
+    before this one; ``listen``: where the nodes started after it connect.
+    """
+    session = bus.open_session(listen=listen, connect=connect)
     reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
-    events: queue.SimpleQueue = queue.SimpleQueue()
     edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
-    store = PortStore([(src, port) for src, port, _, _ in edges])
 
-    def on_data(sample, key):
-        events.put(("data", key, *bus.decode_array(sample.payload.to_bytes(), sample.attachment.to_bytes())))
-
-    subs = [session.declare_subscriber(bus.port_key(run_id, src, port), lambda s, k=(src, port): on_data(s, k))
-            for src, port, _, _ in edges]
-    subs.append(session.declare_subscriber(bus.tick_key(run_id),
-                                           lambda s: events.put(("tick", bus.decode_json(s.payload.to_bytes())))))
-    subs.append(session.declare_subscriber(bus.ctl_key(run_id, name, "cmd"),
-                                           lambda s: events.put(("cmd", bus.decode_json(s.payload.to_bytes())))))
-
-    def reply(tick: int, phase: str | None = None, error: str | None = None, **extra) -> None:
+    def reply(tick: int, phase: str | None = None, error: str | None = None, values=(), **extra) -> None:
         msg = {"name": name, "tick": tick, "phase": phase, "ok": error is None, **extra}
         if error:
             msg["error"] = error
-        reply_pub.put(bus.encode_json(msg))
+        payload, attachment = bus.encode_reply(msg, values)
+        reply_pub.put(payload, attachment=attachment)
 
     try:
         component = setup_component(scenario, wiring, name)
@@ -63,54 +161,30 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         session.close()
         return 1
     timeout_s = scenario.components[name].timeout_s or scenario.timeout_s
+    store = PortStore([(src, port) for src, port, _, _ in edges], keep=WINDOW + 2)
     stepper = Stepper(name, component, session, run_id, wiring, store, timeout_s)
+    node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply)
+    subs = [session.declare_subscriber(bus.port_key(run_id, src, port),
+                                       lambda s, k=(src, port): node.on_data(k, s))
+            for src, port, _, _ in edges]
+    subs.append(session.declare_subscriber(bus.tick_key(run_id), node.on_tick))
+    subs.append(session.declare_subscriber(bus.ctl_key(run_id, name, "cmd"), node.on_cmd))
     token = session.liveliness().declare_token(bus.alive_key(run_id, name))
-    period = wiring.periods[name]
     reply(-1, "ready")
-
-    def inputs_ready(tick: int) -> bool:
-        return all(store.has(src, port, expected_stamp(tick, per, delay)) for src, port, per, delay in edges)
-
-    waiting: deque = deque()
     status = 0
     try:
-        while True:
-            try:
-                event = events.get(timeout=IDLE_TIMEOUT_S)
-            except queue.Empty:
+        while not node.stopped.wait(1.0):
+            if time.monotonic() - node.last_heard > IDLE_TIMEOUT_S:
                 print(f"cosim node {name}: nothing from the scheduler for {IDLE_TIMEOUT_S:g} s, exiting",
                       file=sys.stderr)
                 status = 1
                 break
-            kind = event[0]
-            if kind == "data":
-                store.store(event[1], event[2], event[3])
-            elif kind == "tick":
-                if event[1].get("check"):
-                    missing = [f"{s}.{p}" for s, p, _, _ in edges if not store.has(s, p, -1)]
-                    reply(-1, "check", missing=missing)
-                elif event[1]["tick"] % period == 0:
-                    waiting.append(event[1])
-            else:
-                cmd = event[1]["cmd"]
-                if cmd == "stop":
-                    break
-                if cmd == "init":
-                    stepper.publish_initial()
-                    reply(-1, "init")
-            while waiting and inputs_ready(waiting[0]["tick"]):
-                msg = waiting.popleft()
-                try:
-                    stepper.step(msg["tick"], msg["t"])
-                    reply(msg["tick"])
-                except ComponentFault as exc:
-                    reply(msg["tick"], error=str(exc), fault=f"{exc} (t = {msg['t']:.3f} s)")
-                except Exception as exc:  # the component's failure goes to the scheduler with its text
-                    reply(msg["tick"], error=f"failed at t = {msg['t']:.3f} s: {type(exc).__name__}: {exc}")
     finally:
+        node.stopped.set()
         token.undeclare()
         for sub in subs:
             sub.undeclare()
-        stepper.close()
+        if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
+            stepper.close()
         session.close()
     return status

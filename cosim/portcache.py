@@ -15,8 +15,6 @@ import zenoh
 
 from cosim import bus
 
-_KEEP = 3
-
 
 class PortTimeout(RuntimeError):
     def __init__(self, component: str, port: str, stamp: int):
@@ -25,13 +23,17 @@ class PortTimeout(RuntimeError):
 
 
 class PortStore:
-    def __init__(self, ports: list[tuple[str, str]]):
+    """``keep``: values kept per port; enough for a delayed edge in lockstep, more where
+    producers may run ahead of their consumers (a distributed run's window)."""
+
+    def __init__(self, ports: list[tuple[str, str]], keep: int = 3):
         self._values: dict[tuple[str, str], dict[int, np.ndarray]] = {p: {} for p in ports}
+        self._keep = keep
 
     def store(self, key: tuple[str, str], tick: int, value: np.ndarray) -> None:
         values = self._values[key]
         values[tick] = value
-        if len(values) > _KEEP:
+        if len(values) > self._keep:
             del values[min(values)]
 
     def has(self, comp: str, port: str, stamp: int) -> bool:

@@ -20,10 +20,10 @@ from typing import Any
 
 from cosim import bus
 from cosim.paths import make_path
-from cosim.portcache import PortCache
+from cosim.portcache import PortCache, PortStore
 from cosim.recorder import TraceRecorder
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
-from cosim.scheduler import LocalGroup, RemoteGroup, RunError, RunFault, Scheduler
+from cosim.scheduler import WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler
 from cosim.stepper import Stepper, setup_component
 from cosim.summary import METRICS, largest_below, run_figures, sweep_plot, sweep_table
 from cosim.wiring import build_wiring
@@ -95,15 +95,16 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
     recorder = TraceRecorder(scenario, wiring, out, path)
     ports = [(c, p.name) for c in wiring.order for p in wiring.outputs[c]]
     endpoint = f"tcp/127.0.0.1:{_free_port()}" if request.processes else None
-    session = bus.open_session(listen=[endpoint], mode="router") if endpoint else bus.open_session()
-    cache = PortCache(session, run_id, ports)
+    session = bus.open_session(listen=[endpoint]) if endpoint else bus.open_session()
+    # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
+    cache = PortStore(ports, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, ports)
     procs: list[subprocess.Popen] = []
     group = scheduler = error = None
     completed = 0
     wall0 = time.perf_counter()
     try:
         if endpoint:
-            group = RemoteGroup(session, run_id, wiring.order)
+            group = RemoteGroup(session, run_id, wiring, cache)
             _start_nodes(scenario, wiring, group, run_id, endpoint, request, procs)
         else:
             steppers = {}
@@ -126,7 +127,8 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
                 proc.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 proc.kill()
-        cache.close()
+        if isinstance(cache, PortCache):
+            cache.close()
         session.close()
     total_wall = time.perf_counter() - wall0
     summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s, total_wall, error)
@@ -160,11 +162,20 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
 
 def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: str, request,
                  started: list) -> None:
-    """Start one ``cosim node`` process per component (appended to ``started``); wait until each is ready."""
+    """Start one ``cosim node`` process per component (appended to ``started``); wait until each is ready.
+
+    The processes form a full mesh: each node listens on a port of its own and
+    connects to the scheduler's ``endpoint`` and to every node started before it.
+    """
     procs = {}
+    earlier = [endpoint]
     for name in wiring.order:
+        listen = f"tcp/127.0.0.1:{_free_port()}"
         cmd = [sys.executable, "-m", "cosim.cli", "node", name, str(request.scenario_file),
-               "--run-id", run_id, "--connect", endpoint]
+               "--run-id", run_id, "--listen", listen]
+        for other in earlier:
+            cmd += ["--connect", other]
+        earlier.append(listen)
         for item in request.overrides:
             cmd += ["--set", item]
         procs[name] = subprocess.Popen(cmd, stdin=subprocess.DEVNULL)

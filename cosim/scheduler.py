@@ -9,7 +9,8 @@ not depend on where components run:
   the wiring's topological order;
 * :class:`RemoteGroup`: each component in a ``cosim node`` process; one tick
   message goes to all, each node steps as soon as its inputs for that tick
-  have arrived, and the tick ends when every due node has replied.
+  have arrived, and the tick ends when every due node has replied; the
+  replies carry the outputs, which the scheduler keeps for its observers.
 
 The loop runs in a worker thread while the calling thread watches it: a step
 that exceeds its timeout, raises, or whose node disappears (liveliness token
@@ -19,6 +20,7 @@ flushed what was recorded so far.
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 from dataclasses import dataclass, field
@@ -30,25 +32,29 @@ import zenoh
 from cosim import bus
 from cosim.component import ComponentFault
 from cosim.errors import UserError
-from cosim.portcache import PortCache, PortTimeout, expected_stamp
+from cosim.portcache import PortStore, PortTimeout, expected_stamp
 from cosim.scenario import Scenario
 from cosim.stepper import Stepper
 from cosim.wiring import Wiring
 
 
 class RunError(UserError):
-    """A run stopped because a component failed, hung or vanished."""
+    """A run stopped because a component failed, hung or vanished.
 
-    def __init__(self, component: str, message: str):
+    ``tick``: the step that failed, when a node reported it (nodes may be
+    ahead of the tick the scheduler was recording).
+    """
+
+    def __init__(self, component: str, message: str, tick: int | None = None):
         super().__init__(f"component {component!r}: {message}")
-        self.component = component
+        self.component, self.tick = component, tick
 
 
 class RunFault(RunError):
     """A component stopped the run on an unsafe condition (its outputs were made safe first)."""
 
-    def __init__(self, component: str, message: str):
-        super().__init__(component, f"fault: {message}")
+    def __init__(self, component: str, message: str, tick: int | None = None):
+        super().__init__(component, f"fault: {message}", tick)
 
 
 class Observer(Protocol):
@@ -95,6 +101,10 @@ class LocalGroup:
     def dead(self) -> list[str]:
         return []
 
+    def flush(self, names: tuple[str, ...]) -> bool:
+        """Local steps are never held back."""
+        return False
+
     def interrupt(self, name: str, reason: str) -> None:
         """A stuck local step cannot be woken; the worker thread is abandoned."""
 
@@ -104,26 +114,37 @@ class LocalGroup:
                 _close_quietly(name, stepper.close)
 
 
-#: Ticks a remote run may send ahead of the one it waits for.
-LOOKAHEAD = 2
+#: Ticks a node may run ahead of the tick the scheduler waits for; credits
+#: for the next ``WINDOW`` ticks go out every ``WINDOW // 2`` ticks.
+WINDOW = 8
+#: Steps a node reports in one reply (sooner when it runs out of credit).
+REPLY_BATCH = WINDOW // 2
+#: How long a timed-out run waits for the nodes' unreported steps before naming the hung one.
+FLUSH_GRACE_S = 0.25
 
 
 class RemoteGroup:
     """Components each in a ``cosim node`` process, driven over zenoh (see :mod:`cosim.node`).
 
-    The worker waits for replies in a blocking ``recv``; the watchdog and the
-    liveliness watcher wake it by publishing a failure reply on the reply key
-    (a local put is delivered at once), so no thread stays blocked in zenoh.
+    Nodes report their steps in batches of up to ``REPLY_BATCH`` (one reply
+    carries the outputs of each step). The worker waits on a queue fed by the
+    reply subscriber; the watchdog wakes it by queueing a failure.
     """
 
-    def __init__(self, session: zenoh.Session, run_id: str, names: list[str]):
-        self.names = names
+    def __init__(self, session: zenoh.Session, run_id: str, wiring: Wiring, store: PortStore):
+        self.names = names = wiring.order
+        self._store = store
+        self._outputs = {n: ([p.name for p in wiring.outputs[n]], bus.ValueLayout([p.shape for p in wiring.outputs[n]]))
+                         for n in names}
         self._dead: set[str] = set()
         self._tick_pub = bus.publisher(session, bus.tick_key(run_id))
         self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}
-        self._wake_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "reply")) for n in names}
-        self._replies = session.declare_subscriber(bus.ctl_key(run_id, "*", "reply"))
-        self._early: dict[tuple, dict] = {}
+        # (header, payload) of every reply; a Python queue, as zenoh's own blocking recv polls
+        self._inbox: queue.SimpleQueue[tuple[bytes, bytes]] = queue.SimpleQueue()
+        self._replies = session.declare_subscriber(
+            bus.ctl_key(run_id, "*", "reply"),
+            lambda sample: self._inbox.put((sample.attachment.to_bytes(), sample.payload.to_bytes())))
+        self._done = {n: -1 for n in names}  # the last tick each node has reported
         self._alive = session.liveliness().declare_subscriber(bus.alive_key(run_id), self._on_alive)
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
@@ -135,61 +156,101 @@ class RemoteGroup:
         return sorted(self._dead)
 
     def interrupt(self, name: str, reason: str) -> None:
-        self._wake_pubs[name].put(bus.encode_json({"name": name, "ok": False, "error": reason}))
+        self._inbox.put((bus.encode_json({"name": name, "ok": False, "error": reason}), b""))
 
     def command(self, name: str, cmd: str) -> None:
         self._cmd_pubs[name].put(bus.encode_json({"cmd": cmd}))
 
+    def flush(self, names: tuple[str, ...]) -> bool:
+        """Ask ``names`` to report the steps they hold back (a hung node cannot)."""
+        for name in names:
+            self.command(name, "flush")
+        return True
+
     def gather(self, names, tick: int, phase: str | None, progress: Progress | None = None,
                resend: Callable[[list[str]], None] | None = None) -> dict[str, dict]:
-        """Wait for one reply of ``phase`` for ``tick`` from each of ``names``.
+        """Wait until each of ``names`` has reported ``tick`` (``phase`` None: a step)
+        or sent one reply of a set-up ``phase``.
 
         With ``resend`` (set-up only, where a message can precede its route),
         the request is sent again to those that have not answered within 0.5 s.
         """
-        pending, got = set(names), {}
+        pending = {n for n in names if phase is not None or self._done[n] < tick}
+        got: dict[str, dict] = {}
+
+        def show() -> None:  # the first unfinished in wiring order is the one to blame
+            if progress is not None:
+                progress.pending = tuple(n for n in progress.pending if n in pending)
 
         def answered(name: str, reply: dict) -> None:
             pending.discard(name)
             got[name] = reply
-            if progress is not None:  # the first unfinished in wiring order is the one to blame
-                progress.pending = tuple(n for n in progress.pending if n in pending)
+            show()
 
-        for name in list(pending):  # replies that came ahead of their turn
-            reply = self._early.pop((name, tick, phase), None)
-            if reply is not None:
-                answered(name, reply)
+        show()
         while pending:
-            if resend is None:
-                sample = self._replies.recv()
-            else:
-                sample = bus.poll(self._replies.try_recv, 0.5)
-                if sample is None:
-                    resend(sorted(pending))
-                    continue
-            reply = bus.decode_json(sample.payload.to_bytes())
+            try:
+                reply = self._decode(self._inbox.get(timeout=None if resend is None else 0.5))
+            except queue.Empty:
+                resend(sorted(pending))
+                continue
             name = reply.get("name", "?")
-            if reply.get("fault"):
-                raise RunFault(name, reply["fault"])
             if not reply.get("ok", False):
-                raise RunError(name, reply.get("error", "failed"))
-            if name in pending and reply.get("tick") == tick and reply.get("phase") == phase:
+                kind = RunFault if reply.get("fault") else RunError
+                error = kind(name, reply.get("fault") or reply.get("error", "failed"), reply.get("tick"))
+                if phase is None and error.tick is not None:
+                    self._settle(name)
+                raise error
+            if name not in pending:
+                continue
+            if phase is None and self._done[name] >= tick:
                 answered(name, reply)
-            elif reply.get("tick", -1) > tick:  # a node already working on a later tick
-                self._early[(name, reply["tick"], reply.get("phase"))] = reply
+            elif phase is not None and reply.get("tick") == tick and reply.get("phase") == phase:
+                answered(name, reply)
         return got
+
+    def _settle(self, failed: str) -> None:
+        """After ``failed`` failed: have the others report every step they finished
+        (for the record), waiting at most ``FLUSH_GRACE_S`` for their answers."""
+        waiting = {n for n in self.names if n != failed and n not in self._dead}
+        self.flush(tuple(waiting))
+        deadline = time.monotonic() + FLUSH_GRACE_S
+        while waiting:
+            try:
+                reply = self._decode(self._inbox.get(timeout=max(deadline - time.monotonic(), 0.0)))
+            except queue.Empty:
+                return
+            if reply.get("phase") == "flush":
+                waiting.discard(reply.get("name"))
+
+    def _decode(self, item: tuple[bytes, bytes]) -> dict:
+        """A reply's header; the outputs it carries go to the store."""
+        header, payload = item
+        reply = bus.decode_json(header)
+        ticks = reply.get("ticks")
+        if ticks:  # a batch of steps
+            self._done[reply["name"]] = ticks[-1]
+        if payload:  # a batch's outputs, or those of a fault's step or of init
+            ports, layout = self._outputs[reply["name"]]
+            ticks = ticks or [reply["tick"]]
+            for tick, values in zip(ticks, layout.split(payload, len(ticks))):
+                for port, value in zip(ports, values):
+                    self._store.store((reply["name"], port), tick, value)
+        return reply
 
     def poll_reply(self, timeout_s: float) -> dict | None:
         """One reply within ``timeout_s`` (used while nodes start), else None."""
-        sample = bus.poll(self._replies.try_recv, timeout_s)
-        return None if sample is None else bus.decode_json(sample.payload.to_bytes())
+        try:
+            return self._decode(self._inbox.get(timeout=timeout_s))
+        except queue.Empty:
+            return None
 
     def start(self, order: list[str], progress: Progress, observed_missing: Callable[[], list[str]],
               tries: int = 100) -> None:
         """Publish every initial output; repeat until every route has delivered one.
 
         A zenoh route between two nodes exists only once both declarations
-        have propagated through the router; a value sent earlier is lost, so
+        have reached both ends of their link; a value sent earlier is lost, so
         producers re-send until every consumer confirms receipt.
         """
         def init(names):
@@ -197,7 +258,7 @@ class RemoteGroup:
                 self.command(name, "init")
 
         def check(names):  # over the tick key, so its routes are proven too
-            self._tick_pub.put(bus.encode_json({"tick": -1, "t": 0.0, "check": True}))
+            self._tick_pub.put(bus.encode_json({"check": True}))
 
         senders = list(order)
         for _ in range(tries):
@@ -216,28 +277,27 @@ class RemoteGroup:
         raise RunError(senders[0], "its initial outputs never reached their consumers")
 
     def plan(self, n_steps: int, dt_s: float) -> None:
-        self._n_steps, self._dt_s, self._sent = n_steps, dt_s, 0
+        self._n_steps, self._granted = n_steps, 0
 
     def step(self, tick: int, t: float, due: list[str], progress: Progress) -> None:
-        """Send ticks up to ``LOOKAHEAD`` ahead, then wait for this tick's replies.
+        """Grant ticks up to ``WINDOW`` ahead, then wait for this tick's replies.
 
-        Nodes step as soon as their inputs for a tick have arrived, so the
-        plant can start tick k+1 the moment the coil driver's tick-k output
+        Nodes step as soon as their inputs for a granted tick have arrived, so
+        the plant starts tick k+1 the moment the coil driver's tick-k output
         reaches it, without a round trip through the scheduler; stamps keep
         the result identical to strict lockstep.
         """
         progress.busy(*due)
-        while self._sent < min(tick + LOOKAHEAD, self._n_steps):
-            self._tick_pub.put(bus.encode_json({"tick": self._sent, "t": self._sent * self._dt_s}))
-            self._sent += 1
+        if self._granted - tick <= WINDOW // 2 and self._granted < self._n_steps:
+            self._granted = min(tick + WINDOW, self._n_steps)
+            self._tick_pub.put(bus.encode_json({"until": self._granted}))
         self.gather(due, tick, None, progress)
 
     def close(self, hung: str | None) -> None:
         for name in self.names:
             if name not in self._dead:
                 _close_quietly(name, lambda n=name: self.command(n, "stop"))
-        for entity in (self._tick_pub, *self._cmd_pubs.values(), *self._wake_pubs.values(),
-                       self._replies, self._alive):
+        for entity in (self._tick_pub, *self._cmd_pubs.values(), self._replies, self._alive):
             entity.undeclare()
 
 
@@ -254,13 +314,14 @@ class Scheduler:
     """Runs one scenario's lockstep loop over a group of components."""
 
     def __init__(self, scenario: Scenario, wiring: Wiring, group: LocalGroup | RemoteGroup,
-                 cache: PortCache, observers: list[Observer]):
+                 cache: PortStore, observers: list[Observer]):
         self.scenario, self.wiring, self.group = scenario, wiring, group
         self.cache, self.observers = cache, observers
         self.timeouts = {n: scenario.components[n].timeout_s or scenario.timeout_s for n in wiring.order}
         self._observed = [(c, p.name, wiring.periods[c]) for c in wiring.order for p in wiring.outputs[c]]
         self.progress = Progress()
         self.loop_wall_s = 0.0  # wall time of the ticks alone (set-up and writing excluded)
+        self._flushed: tuple = (None, 0.0)  # (occasion, time) of the watchdog's last flush
 
     def run(self, on_progress: Callable[[int], None] | None = None) -> int:
         """Run all ticks; returns the number completed. Raises :class:`RunError` on a failure."""
@@ -285,14 +346,27 @@ class Scheduler:
         state = self.progress
         if state.done:
             return
-        for name in self.group.dead():
-            return self._stop(name, f"its process ended unexpectedly (tick {max(state.tick, 0)})")
-        pending = state.pending
-        if pending:
-            limit = self.timeouts.get(pending[0], self.scenario.timeout_s)  # the others wait on it
-            if time.monotonic() - state.since > limit:
-                t = max(state.tick, 0) * self.scenario.dt_s
-                self._stop(pending[0], f"step at t = {t:.3f} s did not finish within {limit:g} s (hung)")
+        dead = self.group.dead()
+        if dead:
+            if self._heard_out("dead", [n for n in self.wiring.order if n not in dead]):
+                self._stop(dead[0], f"its process ended unexpectedly (tick {max(state.tick, 0)})")
+            return
+        pending, since = state.pending, state.since
+        if not pending or time.monotonic() - since <= min(self.timeouts[n] for n in pending):
+            return
+        limit = self.timeouts[pending[0]]  # the first unfinished in wiring order: the others wait on it
+        if self._heard_out(since, pending) and time.monotonic() - since > limit:
+            t = max(state.tick, 0) * self.scenario.dt_s
+            self._stop(pending[0], f"step at t = {t:.3f} s did not finish within {limit:g} s (hung)")
+
+    def _heard_out(self, occasion, names) -> bool:
+        """Whether ``names`` have had ``FLUSH_GRACE_S`` to report the steps they hold back
+        since the watchdog first asked them on this ``occasion`` (local steps: at once)."""
+        if self._flushed[0] != occasion:
+            if not self.group.flush(tuple(names)):
+                return True
+            self._flushed = (occasion, time.monotonic())
+        return time.monotonic() - self._flushed[1] >= FLUSH_GRACE_S
 
     def _stop(self, component: str, reason: str) -> None:
         state = self.progress
@@ -321,10 +395,10 @@ class Scheduler:
                     return
         except PortTimeout as exc:
             self._fail(RunError(exc.component, f"its output {exc.port!r} for tick {exc.stamp} never arrived"))
-        except RunFault as exc:  # a node's fault: record the tick as far as it went
-            self._observe(state.tick, state.tick * dt, partial=True)
-            self._fail(exc)
         except RunError as exc:
+            self._catch_up(exc.tick)
+            if isinstance(exc, RunFault):  # record the fault's tick as far as it went
+                self._observe(state.tick, state.tick * dt, partial=True)
             self._fail(exc)
         except ComponentFault as exc:
             self._observe(state.tick, state.tick * dt, partial=True)
@@ -335,6 +409,18 @@ class Scheduler:
             self._fail(RunError(name, f"failed at t = {max(state.tick, 0) * dt:.3f} s: {type(exc).__name__}: {exc}"))
         finally:
             state.done = True
+
+    def _catch_up(self, failed_tick: int | None) -> None:
+        """Record the ticks before a node's failure that every component finished
+        (nodes run ahead of the tick being recorded); ``state.tick`` ends on the first
+        tick not recorded."""
+        state, dt = self.progress, self.scenario.dt_s
+        if failed_tick is None:
+            return
+        while state.tick < failed_tick and all(self.cache.has(c, p, expected_stamp(state.tick, per, 0))
+                                               for c, p, per in self._observed):
+            self._observe(state.tick, state.tick * dt)
+            state.tick += 1
 
     def _observe(self, tick: int, t: float, partial: bool = False) -> None:
         """Give the observers every port's value at ``tick``; ``partial`` (a fault stopped the

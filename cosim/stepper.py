@@ -55,7 +55,12 @@ class Stepper:
         self._inputs = [(e.dst_port, e.src, e.src_port, wiring.periods[e.src], e.delay)
                         for e in wiring.edges_into(name)]
         self._ports = {p.name: p.shape for p in wiring.outputs[name]}
+        consumed = {e.src_port for e in wiring.edges if e.src == name}
+        # ports another component waits for leave first; the rest only feed observers
+        self._publish_order = sorted(self._ports, key=lambda p: p not in consumed)
         self._pubs = {p: bus.publisher(session, bus.port_key(run_id, name, p)) for p in self._ports}
+        #: the values last published, in the declared port order
+        self.last_outputs: list[np.ndarray] = []
 
     def publish_initial(self) -> None:
         self._publish(-1, self.component.initial_outputs())
@@ -71,12 +76,15 @@ class Stepper:
         if outputs is None or set(outputs) != set(self._ports):
             got = sorted(outputs or {})
             raise ComponentError(f"returned ports {got}, expected {sorted(self._ports)}")
-        for port, value in outputs.items():
-            value = np.asarray(value, dtype=float)
-            if value.shape != self._ports[port]:
-                raise ComponentError(f"output {port!r} has shape {value.shape}, declared {self._ports[port]}")
-            payload, attachment = bus.encode_array(value, tick)
+        values = {}
+        for port, shape in self._ports.items():
+            values[port] = np.asarray(outputs[port], dtype=float)
+            if values[port].shape != shape:
+                raise ComponentError(f"output {port!r} has shape {values[port].shape}, declared {shape}")
+        for port in self._publish_order:
+            payload, attachment = bus.encode_array(values[port], tick)
             self._pubs[port].put(payload, attachment=attachment)
+        self.last_outputs = list(values.values())
 
     def close(self) -> None:
         for pub in self._pubs.values():

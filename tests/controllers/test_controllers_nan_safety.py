@@ -30,15 +30,19 @@ def fresh_plugins():
     plugins.reset()
 
 
-def run_faulty(out: Path, *overrides):
+def run_faulty(out: Path, *overrides, processes: bool = False):
     with pytest.raises(RunError) as err:
-        run(RunRequest(SCENARIO, out, list(overrides), progress=False))
+        run(RunRequest(SCENARIO, out, list(overrides), processes=processes, progress=False))
     return json.loads((out / "summary.json").read_text()), str(err.value)
 
 
-@pytest.mark.parametrize("value", ["nan", "inf", "400.0"])  # (400, 400, 400) rad/s: 110 Hz > the 60 Hz limit
-def test_unsafe_command_stops_the_run_cleanly(tmp_path, fresh_plugins, value):
-    summary, message = run_faulty(tmp_path, f"components.controller.params.value={value}")
+@pytest.mark.parametrize("value,processes", [
+    ("nan", False), ("inf", False),
+    ("400.0", False),  # (400, 400, 400) rad/s: 110 Hz > the 60 Hz limit
+    ("nan", True),  # nodes run ahead of the record: it still ends exactly at the fault
+])
+def test_unsafe_command_stops_the_run_cleanly(tmp_path, fresh_plugins, value, processes):
+    summary, message = run_faulty(tmp_path, f"components.controller.params.value={value}", processes=processes)
     assert summary["status"] == "fault"
     assert "coil_driver" in message and "unsafe command" in message
     ticks = int(round(NAN_AT_S / DT)) + 1  # the faulty tick is recorded, nothing after it
