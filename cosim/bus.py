@@ -19,6 +19,7 @@ knows which step produced the value. No pickle anywhere.
 
 from __future__ import annotations
 
+import functools
 import json
 import struct
 import time
@@ -108,20 +109,29 @@ def tick_key(run_id: str) -> str:
     return f"{ROOT}/{run_id}/ctl/tick"
 
 
-_HEAD = struct.Struct("<qB")
+_TICK = struct.Struct("<q")
+
+
+@functools.lru_cache(maxsize=None)
+def _shape_bytes(shape: tuple[int, ...]) -> bytes:
+    """The attachment after the tick: ndim (uint8), then each dimension (int32)."""
+    return struct.pack(f"<B{len(shape)}i", len(shape), *shape)
+
+
+@functools.lru_cache(maxsize=None)
+def _shape_of(shape_bytes: bytes) -> tuple[int, ...]:
+    return struct.unpack_from(f"<{shape_bytes[0]}i", shape_bytes, 1)
 
 
 def encode_array(value: np.ndarray, tick: int) -> tuple[bytes, bytes]:
     """``(payload, attachment)`` for an array produced at ``tick``."""
     arr = np.asarray(value, dtype=_F64)
-    return arr.tobytes(), _HEAD.pack(tick, arr.ndim) + struct.pack(f"<{arr.ndim}i", *arr.shape)
+    return arr.tobytes(), _TICK.pack(tick) + _shape_bytes(arr.shape)
 
 
 def decode_array(payload: bytes, attachment: bytes) -> tuple[int, np.ndarray]:
     """Inverse of :func:`encode_array`: ``(tick, array)``; the array is read-only."""
-    tick, ndim = _HEAD.unpack_from(attachment)
-    shape = struct.unpack_from(f"<{ndim}i", attachment, _HEAD.size)
-    return tick, np.frombuffer(payload, dtype=_F64).reshape(shape)
+    return _TICK.unpack_from(attachment)[0], np.frombuffer(payload, dtype=_F64).reshape(_shape_of(attachment[8:]))
 
 
 def encode_reply(header: dict, values: list[np.ndarray] = ()) -> tuple[bytes, bytes]:

@@ -73,7 +73,7 @@ class Stepper:
             raise ComponentFault(self.component.fault)
 
     def _publish(self, tick: int, outputs: dict[str, np.ndarray]) -> None:
-        if outputs is None or set(outputs) != set(self._ports):
+        if outputs is None or outputs.keys() != self._ports.keys():
             got = sorted(outputs or {})
             raise ComponentError(f"returned ports {got}, expected {sorted(self._ports)}")
         values = {}
