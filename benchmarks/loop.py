@@ -1,8 +1,11 @@
 """Real-time factor of the racetrack PI loop over zenoh: one process, and one process per component.
 
-Prints JSON: {"one_process": {"realtime_factor": median, "runs": [...]},
-"processes": {...}, "sim_s": ..., "budgets": {...}}. The factor is simulated
-time over the wall time of the stepping loop (set-up and file writing excluded).
+Prints JSON: {"one_process": {"realtime_factor": median, "runs": [...],
+"cpu_steal_pct": ...}, "processes": {...}, "sim_s": ..., "budgets": {...}}. The
+factor is simulated time over the wall time of the stepping loop (set-up and
+file writing excluded). ``cpu_steal_pct`` is the share of CPU time the
+hypervisor took from this machine while the runs went (Linux /proc/stat; None
+elsewhere): on a shared VM a high share explains a low factor.
 
     .venv/bin/python benchmarks/loop.py [--sim-s 60] [--repeats 3]
 """
@@ -20,13 +23,26 @@ from cosim.runner import RunRequest, run
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
 
 
+def cpu_times() -> list[int] | None:
+    """The machine's aggregate CPU times (jiffies: user nice system idle iowait irq softirq steal)."""
+    try:
+        return [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:9]]
+    except (OSError, ValueError):
+        return None
+
+
 def measure(processes: bool, sim_s: float, repeats: int) -> dict:
     factors = []
+    before = cpu_times()
     for _ in range(repeats):
         with tempfile.TemporaryDirectory() as out:
             summary = run(RunRequest(SCENARIO, Path(out), [f"duration_s={sim_s}"], processes, progress=False))
         factors.append(round(summary["realtime_factor"], 2))
-    return {"realtime_factor": statistics.median(factors), "runs": factors}
+    after = cpu_times()
+    steal = None
+    if before and after and sum(after) > sum(before):
+        steal = round(100 * (after[7] - before[7]) / (sum(after) - sum(before)), 1)
+    return {"realtime_factor": statistics.median(factors), "runs": factors, "cpu_steal_pct": steal}
 
 
 def main() -> None:
