@@ -28,6 +28,8 @@ from typing import Callable, TypeVar
 import numpy as np
 import zenoh
 
+from cosim.errors import UserError
+
 ROOT = "cosim"
 RESERVED_NAMES = ("alive", "ctl")
 
@@ -76,8 +78,12 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("listen/endpoints", json.dumps(list(listen or [])))
-    conf.insert_json5("connect/endpoints", json.dumps(list(connect or [])))
+    for what, endpoints in (("listen", listen), ("connect", connect)):
+        try:
+            conf.insert_json5(f"{what}/endpoints", json.dumps(list(endpoints or [])))
+        except zenoh.ZError:
+            raise UserError(f"bad zenoh endpoint in --{what} {' '.join(endpoints or [])}: "
+                            "expected <protocol>/<address>, e.g. tcp/127.0.0.1:7447") from None
     if listen or connect:  # every process of a run must agree on the transport
         conf.insert_json5("scouting/gossip/enabled", "false")
         conf.insert_json5("transport/unicast/lowlatency", "true")

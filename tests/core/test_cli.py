@@ -1,4 +1,4 @@
-"""Small commands: plugins, validate's wiring table, replay's errors."""
+"""Small commands: plugins, validate's wiring table, replay's and node's errors."""
 
 from __future__ import annotations
 
@@ -38,3 +38,9 @@ def test_validate_names_a_wrong_port(tmp_path, capsys):
 def test_replay_without_a_recording_is_a_clear_error(tmp_path, capsys):
     assert main(["replay", str(tmp_path)]) == 2
     assert f"no recording at {tmp_path / 'recording.rrd'}" in capsys.readouterr().err
+
+
+def test_node_with_a_bad_endpoint_is_a_clear_error(capsys):
+    args = ["node", "plant", str(REPO / "scenarios" / "racetrack.yaml"), "--run-id", "x", "--connect", "tcp/127.0.0.1:1", "--listen", "garbage"]
+    assert main(args) == 2
+    assert "bad zenoh endpoint in --listen garbage" in capsys.readouterr().err
