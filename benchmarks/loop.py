@@ -1,7 +1,11 @@
 """Real-time factor of the racetrack PI loop over zenoh: one process, and one process per component.
 
 Prints JSON: {"one_process": {"realtime_factor": median, "runs": [...],
-"cpu_steal_pct": ...}, "processes": {...}, "sim_s": ..., "budgets": {...}}. The
+"cpu_steal_pct": ...}, "processes": {...}, "processes_os_placement": {...},
+"sim_s": ..., "budgets": {...}}. ``processes`` places the nodes as ``cosim run
+--processes`` does by default (all on one CPU, see cosim.placement);
+``processes_os_placement`` leaves that to the operating system
+(``--node-cpus none``), for comparison. The
 factor is simulated time over the wall time of the stepping loop (set-up and
 file writing excluded). ``cpu_steal_pct`` is the share of CPU time the
 hypervisor took from this machine while the runs went (Linux /proc/stat; None
@@ -31,12 +35,12 @@ def cpu_times() -> list[int] | None:
         return None
 
 
-def measure(processes: bool, sim_s: float, repeats: int) -> dict:
+def measure(processes: bool, sim_s: float, repeats: int, node_cpus: str = "auto") -> dict:
     factors = []
     before = cpu_times()
     for _ in range(repeats):
         with tempfile.TemporaryDirectory() as out:
-            summary = run(RunRequest(SCENARIO, Path(out), [f"duration_s={sim_s}"], processes, progress=False))
+            summary = run(RunRequest(SCENARIO, Path(out), [f"duration_s={sim_s}"], processes, False, node_cpus))
         factors.append(round(summary["realtime_factor"], 2))
     after = cpu_times()
     steal = None
@@ -54,6 +58,7 @@ def main() -> None:
         "sim_s": args.sim_s,
         "one_process": measure(False, args.sim_s, args.repeats),
         "processes": measure(True, args.sim_s, args.repeats),
+        "processes_os_placement": measure(True, args.sim_s, args.repeats, node_cpus="none"),
         "budgets": {"one_process": 50, "processes": 10},
     }
     print(json.dumps(result, indent=2))

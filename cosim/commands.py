@@ -19,6 +19,9 @@ def add_commands(sub) -> None:
                    help="override a scenario field by dotted path, e.g. components.camera.params.interval_s=0.1")
     p.add_argument("--processes", action="store_true",
                    help="run every component as its own `cosim node` process over zenoh TCP on loopback")
+    p.add_argument("--node-cpus", default="auto", metavar="auto|none|LIST",
+                   help="with --processes: CPUs for the nodes (auto: all on one CPU, the fastest "
+                        "placement for a lockstep chain; none: the OS places them; or e.g. 1 or 0,2-3)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_run)
 
@@ -46,6 +49,8 @@ def add_commands(sub) -> None:
                         "every node started before this one")
     p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
                    help="endpoint the nodes started after this one connect to, e.g. tcp/0.0.0.0:7448")
+    p.add_argument("--cpus", default=None, metavar="LIST",
+                   help="run on these CPUs (e.g. 1 or 0,2-3) under SCHED_BATCH (see cosim.placement)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.set_defaults(func=cmd_node)
 
@@ -58,7 +63,7 @@ def cmd_run(args) -> int:
     from cosim.scenario import load_scenario
 
     out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
-    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet))
+    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet, args.node_cpus))
     if "sweep" not in summary:
         err = summary["tracking_error_mm"]
         if err:
@@ -119,6 +124,10 @@ def cmd_replay(args) -> int:
 
 
 def cmd_node(args) -> int:
+    if args.cpus is not None:  # before anything starts threads
+        from cosim.placement import pin_this_process
+
+        pin_this_process(args.cpus)
     from cosim.node import serve
     from cosim.scenario import load_scenario
     from cosim.wiring import build_wiring

@@ -20,6 +20,7 @@ from typing import Any
 
 from cosim import bus
 from cosim.paths import make_path
+from cosim.placement import node_cpus
 from cosim.portcache import PortCache, PortStore
 from cosim.recorder import TraceRecorder
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
@@ -41,6 +42,8 @@ class RunRequest:
     overrides: list[str] = field(default_factory=list)
     processes: bool = False
     progress: bool = True
+    #: with ``processes``: where the nodes run (see :mod:`cosim.placement`)
+    node_cpus: str = "auto"
 
 
 def run(request: RunRequest) -> dict[str, Any]:
@@ -55,7 +58,7 @@ def run(request: RunRequest) -> dict[str, Any]:
         sub_dir = request.out_dir / "runs" / f"{i:03d}_{_safe(tag)}"
         print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
         sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
-                         request.processes, request.progress)
+                         request.processes, request.progress, request.node_cpus)
         try:
             summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
         except RunError as exc:  # the other runs go on; this one's summary says what happened
@@ -87,6 +90,7 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
     A component failure still writes the outputs recorded so far and the
     summary (with ``status: "failed"``), then raises :class:`RunError`.
     """
+    cpus = node_cpus(request.node_cpus) if request.processes else None
     out = Path(request.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     wiring = build_wiring(scenario)
@@ -105,7 +109,7 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
     try:
         if endpoint:
             group = RemoteGroup(session, run_id, wiring, cache)
-            _start_nodes(scenario, wiring, group, run_id, endpoint, request, procs)
+            _start_nodes(scenario, wiring, group, run_id, endpoint, request, cpus, procs)
         else:
             steppers = {}
             group = LocalGroup(steppers)
@@ -160,12 +164,13 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
 # ---------------------------------------------------------------- processes
 
 
-def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: str, request,
+def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: str, request, cpus: str | None,
                  started: list) -> None:
     """Start one ``cosim node`` process per component (appended to ``started``); wait until each is ready.
 
     The processes form a full mesh: each node listens on a port of its own and
     connects to the scheduler's ``endpoint`` and to every node started before it.
+    ``cpus``: the CPU list every node runs on (None: the OS places them).
     """
     procs = {}
     earlier = [endpoint]
@@ -176,6 +181,8 @@ def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: st
         for other in earlier:
             cmd += ["--connect", other]
         earlier.append(listen)
+        if cpus:
+            cmd += ["--cpus", cpus]
         for item in request.overrides:
             cmd += ["--set", item]
         procs[name] = subprocess.Popen(cmd, stdin=subprocess.DEVNULL)

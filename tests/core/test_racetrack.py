@@ -25,4 +25,6 @@ def test_plant_loop_is_byte_identical_across_process_layouts(tmp_path):
     short = ["--set", "duration_s=6", "--quiet"]
     assert main(["run", str(SCENARIO), "--out", str(tmp_path / "a"), *short]) == 0
     assert main(["run", str(SCENARIO), "--out", str(tmp_path / "b"), *short, "--processes"]) == 0
-    assert (tmp_path / "a" / "log.csv").read_bytes() == (tmp_path / "b" / "log.csv").read_bytes()
+    assert main(["run", str(SCENARIO), "--out", str(tmp_path / "c"), *short, "--processes", "--node-cpus", "none"]) == 0
+    log = (tmp_path / "a" / "log.csv").read_bytes()
+    assert log == (tmp_path / "b" / "log.csv").read_bytes() == (tmp_path / "c" / "log.csv").read_bytes()
