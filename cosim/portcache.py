@@ -31,10 +31,12 @@ class PortStore:
         self._keep = keep
 
     def store(self, key: tuple[str, str], tick: int, value: np.ndarray) -> None:
+        """Keep ``value`` of ``key`` produced at ``tick``; a producer's ticks come in
+        increasing order, so the oldest value is the first one stored."""
         values = self._values[key]
         values[tick] = value
         if len(values) > self._keep:
-            del values[min(values)]
+            del values[next(iter(values))]
 
     def has(self, comp: str, port: str, stamp: int) -> bool:
         return stamp in self._values[(comp, port)]

@@ -115,8 +115,10 @@ class LocalGroup:
 
 
 #: Ticks a node may run ahead of the tick the scheduler waits for; credits
-#: for the next ``WINDOW`` ticks go out every ``WINDOW // 2`` ticks.
-WINDOW = 8
+#: for the next ``WINDOW`` ticks go out every ``WINDOW // 2`` ticks. Every
+#: credit and report is a message a node handles besides its inputs: at 32,
+#: 0.6 of them per tick in all (at 8: 2.5), which took ~20 % off a tick.
+WINDOW = 32
 #: Steps a node reports in one reply (sooner when it runs out of credit).
 REPLY_BATCH = WINDOW // 2
 #: How long a timed-out run waits for the nodes' unreported steps before naming the hung one.
