@@ -124,10 +124,6 @@ def cmd_replay(args) -> int:
 
 
 def cmd_node(args) -> int:
-    if args.cpus is not None:  # before anything starts threads
-        from cosim.placement import pin_this_process
-
-        pin_this_process(args.cpus)
     from cosim.node import serve
     from cosim.scenario import load_scenario
     from cosim.wiring import build_wiring
@@ -136,7 +132,8 @@ def cmd_node(args) -> int:
     if args.component not in scenario.components:
         raise UserError(f"no component {args.component!r} in {args.scenario} "
                         f"(have: {', '.join(scenario.components)})")
-    return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen)
+    return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen,
+                 args.cpus)
 
 
 def add_dataset_command(sub) -> None:

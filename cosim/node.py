@@ -32,6 +32,7 @@ import zenoh
 
 from cosim import bus
 from cosim.component import ComponentFault
+from cosim.placement import parse_cpu_list, pin_this_process
 from cosim.portcache import PortStore, expected_stamp
 from cosim.scenario import Scenario
 from cosim.scheduler import REPLY_BATCH, WINDOW
@@ -137,12 +138,15 @@ class _Node:
 
 
 def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str],
-          listen: list[str]) -> int:
+          listen: list[str], cpus: str | None = None) -> int:
     """Serve component ``name`` until told to stop; returns an exit status.
 
     ``connect``: the scheduler's endpoint and those of the nodes started
-    before this one; ``listen``: where the nodes started after it connect.
+    before this one; ``listen``: where the nodes started after it connect;
+    ``cpus``: where to step (see :mod:`cosim.placement`), once set up on any CPU.
     """
+    if cpus is not None:
+        parse_cpu_list(cpus)  # a bad list fails before anything starts
     session = bus.open_session(listen=listen, connect=connect)
     reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
     edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
@@ -156,6 +160,8 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
 
     try:
         component = setup_component(scenario, wiring, name)
+        if cpus is not None:  # the threads started from here on (subscribers') inherit it
+            pin_this_process(cpus)
     except Exception as exc:  # reported to the scheduler, which names us
         reply(-1, "ready", f"set-up failed: {exc}")
         session.close()

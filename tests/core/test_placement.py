@@ -59,3 +59,10 @@ def test_a_bad_node_cpu_list_stops_the_run_before_it_starts(tmp_path, capsys):
     assert main(args) == 2
     assert "CPU list 'first': expected auto, none or a CPU list such as 1 or 0,2-3" in capsys.readouterr().err
     assert not (tmp_path / "r").exists()
+
+
+def test_a_node_with_a_bad_cpu_list_fails_before_it_connects(capsys):
+    args = ["node", "plant", str(REPO / "scenarios" / "racetrack.yaml"), "--run-id", "x",
+            "--connect", "tcp/127.0.0.1:1", "--cpus", "1-"]
+    assert main(args) == 2
+    assert "CPU list '1-': expected auto, none or a CPU list" in capsys.readouterr().err
