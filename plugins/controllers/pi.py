@@ -10,11 +10,14 @@ velocity (the spiral swims along +omega) with ``|omega| = 2 pi f``, where
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from cosim.params import Param, read_params
 from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
+from cosim_plugins.vec3 import all_finite, norm
 
 PARAMS = {
     "speed_mm_s": Param(20.0, "cruise speed [mm/s]", 0.0, 200.0),
@@ -48,11 +51,11 @@ class PIController(PathController):
         return {"omega": omega, "solve_time": timer.elapsed}
 
     def _control(self, t, pos, vel):
-        if not np.all(np.isfinite(pos)):
+        if not all_finite(pos):
             return np.zeros(3)
         target, closest, at_end = self.pursuit.reference(pos, vel, t)
         to_target = target - pos
-        dist = np.linalg.norm(to_target)
+        dist = norm(to_target)
         speed = self.speed * (min(dist / self.pursuit.lookahead_m, 1.0) if at_end else 1.0)
         cross = closest - pos
         self.integral = _clip_norm(self.integral + self.ki * cross * self.dt, self.i_max)
@@ -61,14 +64,14 @@ class PIController(PathController):
 
 
 def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
-    n = np.linalg.norm(v)
+    n = norm(v)
     return v if n <= limit else v * (limit / n)
 
 
 def velocity_to_omega(v_des_m_s: np.ndarray, m_per_hz: float, f_max_hz: float) -> np.ndarray:
     """Rotation vector [rad/s] that swims at ``v_des`` (3,) [m/s]: along it, 2 pi f with f = |v| / m_per_hz."""
-    speed = np.linalg.norm(v_des_m_s)
+    speed = norm(v_des_m_s)
     if speed < 1e-12:
         return np.zeros(3)
     f = min(speed / m_per_hz, f_max_hz)
-    return v_des_m_s / speed * (2 * np.pi * f)
+    return v_des_m_s / speed * (2 * math.pi * f)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosim.paths import Path
+from cosim_plugins.vec3 import norm
 
 WINDOW_BACK, WINDOW_AHEAD = 20, 200
 
@@ -19,21 +20,17 @@ class PurePursuit:
     def __init__(self, path: Path, lookahead_m: float = 9e-3, gain_s: float = 0.001):
         self.path, self.lookahead_m, self.gain_s = path, lookahead_m, gain_s
         self.index: int | None = None
+        self._pts: np.ndarray | None = None  # the polyline the spacing below belongs to
+        self._spacing_m = 0.0
 
     def reference(self, position_m: np.ndarray, velocity_m_s: np.ndarray, t_s: float):
         """``(target (3,), closest (3,), at_end)`` for the swimmer at ``position_m``."""
         pts = self.path.points(t_s)
         n = len(pts)
-        if self.index is None:
-            idx = np.arange(n)
-        elif self.path.closed:
-            idx = (self.index + np.arange(-WINDOW_BACK, WINDOW_AHEAD)) % n
-        else:
-            idx = np.arange(max(self.index - WINDOW_BACK, 0), min(self.index + WINDOW_AHEAD, n))
-        d2 = ((pts[idx] - position_m) ** 2).sum(axis=1)
-        self.index = int(idx[np.argmin(d2)])
-        spacing = np.linalg.norm(pts[1] - pts[0])
-        ahead = int(round((self.lookahead_m + self.gain_s * np.linalg.norm(velocity_m_s)) / spacing))
+        if pts is not self._pts:  # a static path returns the same array every step
+            self._pts, self._spacing_m = pts, norm(pts[1] - pts[0])
+        self.index = self._closest(pts, position_m)
+        ahead = int(round((self.lookahead_m + self.gain_s * norm(velocity_m_s)) / self._spacing_m))
         target_idx = self.index + ahead
         at_end = False
         if self.path.closed:
@@ -41,3 +38,22 @@ class PurePursuit:
         elif target_idx >= n - 1:
             target_idx, at_end = n - 1, True
         return pts[target_idx], pts[self.index], at_end
+
+    def _closest(self, pts: np.ndarray, position_m: np.ndarray) -> int:
+        """Index of the point of ``pts`` (n, 3) [m] closest to ``position_m``: over the whole
+        path the first time, then in the window around the last index (wrapping if closed)."""
+        n = len(pts)
+        if self.index is None:
+            start, stop = 0, n
+        else:
+            start, stop = self.index - WINDOW_BACK, self.index + WINDOW_AHEAD
+            if not self.path.closed:
+                start, stop = max(start, 0), min(stop, n)
+        if 0 <= start and stop <= n:
+            window = pts[start:stop]  # a view: no copy
+        else:  # a closed path's window across its start
+            window = pts[np.arange(start, stop) % n]
+        d = window - position_m
+        d *= d
+        d2 = d[:, 0] + d[:, 1] + d[:, 2]  # the squared distances, faster than d.sum(axis=1) on (m, 3)
+        return (start + int(d2.argmin())) % n
