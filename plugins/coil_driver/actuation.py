@@ -9,7 +9,11 @@ over the workspace, which the controllers must tolerate.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from cosim_plugins.vec3 import cross, norm
 
 MU0 = 4e-7 * np.pi
 
@@ -42,19 +46,19 @@ def impedance_ohm(freq_hz: float, r_ohm: float, l_h: float, c_f: float) -> compl
     return complex(r_ohm, w * l_h - 1.0 / (w * c_f))
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+#: Fallback directions for :func:`plane_start`, tried in order.
+_FALLBACKS = (np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
 
 
 def plane_start(n: np.ndarray, towards: np.ndarray | None) -> np.ndarray:
     """Unit vector perpendicular to unit ``n``: ``towards`` projected onto the plane, else any."""
-    for candidate in (towards, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])):
+    for candidate in (towards, *_FALLBACKS):
         if candidate is None:
             continue
-        v = candidate - (candidate @ n) * n
-        norm = np.sqrt(v @ v)
-        if norm > 1e-6:
-            return v / norm
+        v = candidate - candidate.dot(n) * n
+        size = norm(v)
+        if size > 1e-6:
+            return v / size
     raise ValueError("no perpendicular found")  # unreachable for a unit n
 
 
@@ -65,9 +69,9 @@ def rotating_field_phasor(n: np.ndarray, e1: np.ndarray, amplitude_t: float) -> 
     ``e2 = n x e1``: the field points along ``e1`` at ``theta = 0`` and turns
     right-handed about ``n``.
     """
-    return amplitude_t * (e1 - 1j * _cross(n, e1))
+    return amplitude_t * (e1 - 1j * cross(n, e1))
 
 
 def field_direction(n: np.ndarray, e1: np.ndarray, theta: float) -> np.ndarray:
     """Unit field direction at rotation angle ``theta`` of the field defined as above."""
-    return np.cos(theta) * e1 + np.sin(theta) * _cross(n, e1)
+    return math.cos(theta) * e1 + math.sin(theta) * cross(n, e1)

@@ -20,6 +20,8 @@ cleanly (recorded in the summary).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from cosim import Component, ComponentError, Port
@@ -32,6 +34,7 @@ from cosim_plugins.coil_driver.actuation import (
     plane_start,
     rotating_field_phasor,
 )
+from cosim_plugins.vec3 import all_finite, norm
 
 PARAMS = {
     "field_mT": Param(3.0, "rotating field amplitude at the swimmer [mT]", 0.0, 50.0),
@@ -69,7 +72,8 @@ class InverseMagnetics(Component):
             raise ComponentError(f"backend {p['backend']!r} unknown; known: {', '.join(BACKENDS)}")
         g = loop_field_on_axis_t_per_a(p["turns"], p["r_inner_mm"] * 1e-3, p["r_outer_mm"] * 1e-3,
                                        p["z_near_mm"] * 1e-3, (p["z_near_mm"] + p["thickness_mm"]) * 1e-3)
-        self.m_pinv = np.linalg.pinv(centre_matrix(g))  # (6, 3) A/T
+        # (6, 3) A/T, complex like the field phasors it multiplies (numpy would cast it every step)
+        self.m_pinv = np.linalg.pinv(centre_matrix(g)).astype(complex)
         self.zero = {"coil_voltage_amp": np.zeros(6), "coil_voltage_phase": np.zeros(6), "drive_freq": np.array(0.0)}
         self.rotation = None  # (n, e1, f_hz, t0_s) of the field being driven: angle 2 pi f (t - t0)
 
@@ -78,26 +82,28 @@ class InverseMagnetics(Component):
 
     def step(self, t, inputs):
         omega = inputs["omega"]
-        f = np.linalg.norm(omega) / (2 * np.pi)
-        if not np.all(np.isfinite(omega)) or f > self.p["f_limit_hz"]:
+        f = norm(omega) / (2 * math.pi)
+        if not all_finite(omega) or f > self.p["f_limit_hz"]:
             self.fault = f"unsafe command omega = {omega} rad/s (limit {self.p['f_limit_hz']:g} Hz): field off"
             self.rotation = None
             return self.zero
         if f < self.p["f_min_hz"] or self.p["field_mT"] == 0.0:
             self.rotation = None
             return self.zero
-        n = omega / (2 * np.pi * f)
+        n = omega / (2 * math.pi * f)
         now = None
         if self.rotation is not None:  # where the field points now, continued in the new plane
             n0, e10, f0, t0 = self.rotation
-            now = field_direction(n0, e10, 2 * np.pi * f0 * (t - t0))
+            now = field_direction(n0, e10, 2 * math.pi * f0 * (t - t0))
         e1 = plane_start(n, now)
         self.rotation = (n, e1, f, t)
         field = rotating_field_phasor(n, e1, self.p["field_mT"] * 1e-3)
-        current = self.m_pinv @ field  # (6,) complex A
+        current = self.m_pinv.dot(field)  # (6,) complex A
         volts = current * impedance_ohm(f, self.p["r_ohm"], self.p["l_h"], self.p["c_f"])
-        peak = np.abs(volts).max()
+        amp = np.abs(volts)
+        peak = amp.max()
         if peak > self.p["v_max"]:
             volts = volts * (self.p["v_max"] / peak)
-        phase = np.angle(volts) - np.remainder(2 * np.pi * f * t, 2 * np.pi)  # angle 0 at t, in absolute time
-        return {"coil_voltage_amp": np.abs(volts), "coil_voltage_phase": phase, "drive_freq": np.array(f)}
+            amp = np.abs(volts)
+        phase = np.angle(volts) - (2 * math.pi * f * t) % (2 * math.pi)  # angle 0 at t, in absolute time
+        return {"coil_voltage_amp": amp, "coil_voltage_phase": phase, "drive_freq": np.array(f)}
