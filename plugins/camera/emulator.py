@@ -28,6 +28,9 @@ PARAMS = {
     "lost_prob": Param(0.0, "probability the detection repeats the previous position", 0.0, 1.0),
 }
 
+#: The truth's coordinates each camera sees, in the order of the noise draws: top (x, y), side (x, z).
+CAMERA_AXES = np.array([0, 1, 0, 2])
+
 
 def _ticks(value_s: float, dt: float, name: str) -> int:
     n = value_s / dt
@@ -68,12 +71,13 @@ class CameraEmulator(Component):
             return None
         if draws[1] < p["lost_prob"] and self.last is not None:
             return self.last
-        top = np.round((truth[[0, 1]] + noise[:2]) / self.pixel_m) * self.pixel_m
-        side = np.round((truth[[0, 2]] + noise[2:]) / self.pixel_m) * self.pixel_m
+        # both cameras at once: (top x, top y, side x, side z), quantised to the pixel grid
+        pixels = np.rint((truth[CAMERA_AXES] + noise) / self.pixel_m) * self.pixel_m
         if draws[2] < p["outlier_prob"]:
             offset = jump / np.linalg.norm(jump) * p["outlier_mm"] * 1e-3
-            top = top + offset[:2]  # a reflection fools the top camera
-        meas = np.array([(top[0] + side[0]) / 2, top[1], side[1]])
+            pixels[:2] += offset[:2]  # a reflection fools the top camera
+        top_x, top_y, side_x, side_z = pixels.tolist()
+        meas = np.array([(top_x + side_x) / 2, top_y, side_z])
         self.last = meas
         return meas
 

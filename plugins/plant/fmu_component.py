@@ -113,10 +113,12 @@ class FmuPlant(Component):
         self._out_vr = _vr_array([variables[n].valueReference for n in out_names])
         self._out_buf = (fmi2Real * len(out_names))()
         self._out_np = np.ctypeslib.as_array(self._out_buf)
-        self._slices = []
+        # where each port lies in the output buffer: a slice, or (i, ...) for a scalar (a 0-d view)
+        self._out_index = []
         start = 0
         for port, names in OUTPUT_MAP.items():
-            self._slices.append((port, start, start + len(names), len(names) == 1))
+            index = (start, Ellipsis) if len(names) == 1 else slice(start, start + len(names))
+            self._out_index.append((port, index))
             start += len(names)
         self._t = 0.0
         self._last = self._read_outputs()
@@ -200,11 +202,8 @@ class FmuPlant(Component):
     def _read_outputs(self) -> dict[str, np.ndarray]:
         fmu = self._fmu
         fmu.fmi2GetReal(fmu.component, self._out_vr, len(self._out_buf), self._out_buf)
-        out = self._out_np
-        return {
-            port: (np.array(out[a]) if scalar else out[a:b].copy())
-            for port, a, b, scalar in self._slices
-        }
+        values = self._out_np.copy()  # one fresh array per step; the ports are views into it
+        return {port: values[index] for port, index in self._out_index}
 
     # ------------------------------------------------------ snapshot / close
     def snapshot(self) -> tuple[float, bytes]:
