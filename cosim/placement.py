@@ -17,6 +17,7 @@ the node that sent it, it runs once the sender has finished its step.
 from __future__ import annotations
 
 import os
+import re
 
 from cosim.errors import UserError
 
@@ -31,15 +32,12 @@ def _available() -> set[int] | None:
 def parse_cpu_list(text: str) -> set[int]:
     """``"0,2-3"`` -> ``{0, 2, 3}``; a malformed list is a :class:`UserError`."""
     cpus: set[int] = set()
-    try:
-        for item in text.split(","):
-            lo, _, hi = item.strip().partition("-")
-            first, last = int(lo), int(hi or lo)
-            if first < 0 or last < first:
-                raise ValueError
-            cpus.update(range(first, last + 1))
-    except ValueError:
-        raise UserError(f"CPU list {text!r}: {_SPEC_HELP}") from None
+    for item in text.split(","):
+        match = re.fullmatch(r"\s*(\d+)(?:-(\d+))?\s*", item)
+        first, last = (int(match[1]), int(match[2] or match[1])) if match else (1, 0)
+        if last < first:
+            raise UserError(f"CPU list {text!r}: {_SPEC_HELP}")
+        cpus.update(range(first, last + 1))
     return cpus
 
 

@@ -20,7 +20,7 @@ linux_only = pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="CP
 def test_cpu_lists_parse_and_bad_ones_are_named():
     assert parse_cpu_list("0,2-3") == {0, 2, 3}
     assert parse_cpu_list("1") == {1}
-    for bad in ("", "a", "3-1", "-1", "1,,2"):
+    for bad in ("", "a", "3-1", "-1", "1-", "1,,2"):
         with pytest.raises(UserError, match=f"CPU list {bad!r}: expected auto, none or a CPU list"):
             parse_cpu_list(bad)
 
