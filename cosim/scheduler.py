@@ -7,10 +7,11 @@ not depend on where components run:
 
 * :class:`LocalGroup`: components in this process, stepped one by one in
   the wiring's topological order;
-* :class:`RemoteGroup`: each component in a ``cosim node`` process; one tick
-  message goes to all, each node steps as soon as its inputs for that tick
-  have arrived, and the tick ends when every due node has replied; the
-  replies carry the outputs, which the scheduler keeps for its observers.
+* :class:`RemoteGroup`: each component in a ``cosim node`` process; credits
+  let the nodes run up to ``WINDOW`` ticks ahead, each node steps a granted
+  tick as soon as its inputs for it have arrived, and a tick ends when every
+  due node has reported it; the reports carry the outputs, which the
+  scheduler keeps for its observers.
 
 The loop runs in a worker thread while the calling thread watches it: a step
 that exceeds its timeout, raises, or whose node disappears (liveliness token
