@@ -51,6 +51,9 @@ def add_commands(subparsers) -> None:
     d.add_argument("--effects", metavar="NAME[,NAME...]",
                    help="candidate effects to rank (default: every registered effect)")
     d.add_argument("--reference", default="1.0", help="reference horizon for the ranking [s] (default 1.0)")
+    d.add_argument("--discover", action="store_true",
+                   help="also fit a sparse combination of candidate force terms to the error left (done anyway "
+                        "when no listed effect explains it); writes DIR/discovered_effect.py")
     d.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     d.add_argument("--out", required=True, metavar="DIR", help="output directory")
     d.set_defaults(func=cmd_diagnose)
@@ -127,7 +130,7 @@ def cmd_diagnose(args) -> int:
     if args.effects is not None:
         candidates = [n.strip() for n in args.effects.split(",") if n.strip() and n.strip() != "none"]
     settings = Settings(model=args.model, effects_files=args.effects_file, add=args.add, candidates=candidates,
-                        reference=args.reference, seed=args.seed)
+                        reference=args.reference, seed=args.seed, discover=args.discover)
     diag = run(args.logs, args.validate, settings, progress=_progress)
     files = write_outputs(diag, out)
     print(format_diagnosis(diag.result))
@@ -152,8 +155,17 @@ def format_diagnosis(r: dict) -> str:
     lines.append(f"{'noise floor':<28}" + "".join(f"{_num(r['noise']['floor_mm'][h]):>9}" for h in hs))
     lines += ["", f"{'rank':<5}{'effect':<20}{'error ' + key + ' s':>12}{'reduction':>11}{'t':>7}"]
     for i, e in enumerate(r["ranking"], 1):
+        if not e.get("identifiable", True):
+            lines.append(f"{'-':<5}{e['effect']:<20}{'not identifiable from these logs':>30}")
+            continue
         lines.append(f"{i:<5}{e['effect']:<20}{_num(e['rollout_mm'][key]):>12}{e['reduction']:>+11.1%}"
                      f"{e['t_stat']:>7.1f}")
+    found = r.get("discovered")
+    if found and found["status"] == "found":
+        lines.append(f"{'+':<5}{'discovered':<20}{_num(found['rollout_mm'][key]):>12}{found['reduction']:>+11.1%}"
+                     f"{found['t_stat']:>7.1f}   ({len(found['terms'])} terms, {found['file']})")
+    for note in r.get("fit_notes", ()):
+        lines.append(f"note: {note}")
     lines += ["", "verdict: " + r["verdict"]["explanation"]]
     return "\n".join(lines)
 

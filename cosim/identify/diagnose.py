@@ -36,10 +36,10 @@ from cosim.identify.dataset import Dataset
 from cosim.identify.effect import known_effects, load_effect_files, resolve
 from cosim.identify.joint import JointModel, fit_joint, supports_effects
 from cosim.identify.localise import localise, window_features
-from cosim.identify.noise import noise_sigma_mm
+from cosim.identify.noise import noise_floor, noise_sigma_mm
 from cosim.identify.timeline import Timeline
 from cosim.identify.verdict import BLOCK_S as VERDICT_BLOCK_S
-from cosim.identify.verdict import paired_t, verdict
+from cosim.identify.verdict import fit_notes, paired_t, verdict
 
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"
@@ -52,6 +52,9 @@ HOLDOUT_EVERY = 3  # split: every third block is held out
 MIN_FIT_WINDOWS = 60
 MIN_EVAL_WINDOWS = 30
 EFFECT_MODEL = "physical"
+DISCOVERED_FILE = "discovered_effect.py"
+TAU_RANGE_S = (0.005, 5.0)  # velocity time constants a non-degenerate fit can have
+TAU_DEFAULT_S = 0.2  # for the noise floor when no fit gives one
 
 
 @dataclass
@@ -67,6 +70,7 @@ class Settings:
     fit_windows: int = FIT_WINDOWS
     max_nfev: int = 30
     seed: int = 0
+    discover: bool = False  # also when no listed effect explains the error
 
 
 @dataclass
@@ -81,6 +85,7 @@ class Diagnosis:
     errors: dict  # {"baseline": (w, 3), "after": (w, 3) or None} at the reference horizon, all logs
     features: dict
     curves: dict  # {label: {horizon: mean error on held-out}} for the before/after plot
+    discovered_source: str | None = None  # discovered_effect.py, when a form was discovered
 
 
 def run(log_paths, validate_paths=(), settings: Settings | None = None, progress=None) -> Diagnosis:
@@ -116,7 +121,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         f"{len(fit_starts)} training windows, {len(test_starts)} held-out windows")
 
     def evaluate(jm, tl=tte, starts=test_starts):
-        ev = jm.evaluate(tl, starts, lead, steps, sigma_mm=sigma, seed=s.seed)
+        ev = jm.evaluate(tl, starts, lead, steps)
         return ev, _summary(ev)
 
     baseline = _fit_model(s.model, dtr, ttr, fit_starts, fit_len, s, say)
@@ -125,6 +130,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     reference = baseline if supports_effects(baseline.host) else _fit_model(EFFECT_MODEL, dtr, ttr, fit_starts,
                                                                             fit_len, s, say)
     ref_ev, ref_sum = (base_ev, base_sum) if reference is baseline else evaluate(reference)
+    fitted = [reference]
     added_out, after = None, None
     if added:
         say(f"adding {', '.join(e.name for e in added)} ...")
@@ -132,10 +138,11 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         after_ev, after_sum = evaluate(after.model)
         added_out = {"effects": [e.name for e in added], "params": after.params, "std": after.std,
                      "before_mm": ref_sum["rollout_mm"], "rollout_mm": after_sum["rollout_mm"],
-                     "floor_mm": after_sum["floor_mm"],
+                     "conditioning": after.model.conditioning,
                      "reduction": {h: _reduction(ref_sum["rollout_mm"][h], after_sum["rollout_mm"][h])
                                    for h in steps}}
         reference, ref_ev, ref_sum = after.model, after_ev, after_sum
+        fitted.append(reference)
     ranking = []
     for effect in candidates:
         say(f"candidate {effect.name} ...")
@@ -143,12 +150,12 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         ev, summ = evaluate(cand.model)
         ranking.append(_rank_entry(effect, cand, ev, summ, ref_ev, ref_sum, s.reference, test_starts,
                                    max(1, int(round(VERDICT_BLOCK_S / dt)))))
-        say(f"  {effect.name}: {ranking[-1]['reduction']:+.1%} at {s.reference} s")
-    ranking.sort(key=lambda r: r["reduction"], reverse=True)
-    # the floor depends on the model's dynamics (how an initial-velocity error propagates): use the best model's
-    floor_from = ranking[0] if ranking and ranking[0]["reduction"] > 0 else None
-    floor = floor_from["floor_mm"] if floor_from else ref_sum["floor_mm"]
-    floor_model = f"+ {floor_from['effect']}" if floor_from else "reference"
+        fitted.append(cand.model)
+        say(f"  {effect.name}: " + (f"{ranking[-1]['reduction']:+.1%} at {s.reference} s" if ranking[-1]["identifiable"]
+                                    else "not identifiable from these logs"))
+    ranking.sort(key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)
+    tau_floor, tau_from = _floor_time_constant(fitted)
+    floor = _floor(tte, test_starts, lead, steps, sigma, tau_floor, base_ev, s.seed)
     # localise what is left: the baseline's error, or with --add the error of the model with the added effects
     ref_steps = {s.reference: steps[s.reference]}
     err_all = baseline.evaluate(tall, all_starts, lead, ref_steps)[s.reference]["err"]
@@ -164,22 +171,60 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         "dt_s": dt, "horizons_s": s.horizons, "reference_horizon_s": s.horizons[s.reference],
         "lead_in_s": lead * dt, "effects_files": [str(f) for f in s.effects_files], "file_effects": added_files,
         "baseline": {"model": s.model, **base_sum, "params": baseline.params(),
-                     "std": {k: (v if np.isfinite(v) else None) for k, v in baseline.std.items()}},
+                     "std": {k: (v if np.isfinite(v) else None) for k, v in baseline.std.items()},
+                     "conditioning": baseline.conditioning},
         "reference": None if reference is baseline else {"model": EFFECT_MODEL, "effects": s.add, **ref_sum},
         "noise": {"sigma_mm": dict(zip("xyz", map(float, sigma))) if sigma is not None else None,
-                  "floor_mm": floor, "floor_model": floor_model},
+                  "floor_mm": floor, "tau_s": tau_floor, "tau_from": tau_from},
         "noise_floor_mm": floor[s.reference],
         "localisation": loc, "added": added_out, "ranking": ranking,
     }
+    result["fit_notes"] = fit_notes(result)
     result["verdict"] = verdict(result, s.reference)
+    source = None
+    if s.discover or result["verdict"]["status"] == "unexplained":
+        result["discovered"], source = _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev,
+                                                 ref_sum, s, dt, evaluate, say)
+        result["verdict"] = verdict(result, s.reference)
     result["timing_s"] = round(time.perf_counter() - t_start, 2)
     curves = {f"{s.model} (baseline)": base_sum["rollout_mm"], "noise floor": floor}
     if added_out:
         curves[f"+ {' + '.join(added_out['effects'])}"] = added_out["rollout_mm"]
-    elif ranking:
+    elif ranking and ranking[0]["identifiable"]:
         curves[f"+ {ranking[0]['effect']} (best)"] = ranking[0]["rollout_mm"]
+    if (result.get("discovered") or {}).get("status") == "found" and not added_out:
+        curves["+ discovered"] = result["discovered"]["rollout_mm"]
     return Diagnosis(result=result, timeline=tall, starts=all_starts, lead=lead, steps=steps,
-                     errors={"baseline": err_all, "after": after_all}, features=features, curves=curves)
+                     errors={"baseline": err_all, "after": after_all}, features=features, curves=curves,
+                     discovered_source=source)
+
+
+def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref_sum, s, dt, evaluate, say):
+    """(result["discovered"], effect file source or None): the sparse regression of :mod:`.discover`."""
+    from cosim.identify.discover import discover
+
+    if not supports_effects(reference.host):
+        return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None
+
+    def refit(effect):
+        fitted = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None)
+        ev, summ = evaluate(fitted.model)
+        return fitted, summ, ev
+
+    found = discover(reference, ttr, fit_starts, fit_len, tte, test_starts, refit, say)
+    if found["status"] != "found":
+        return found, None
+    summ, ev = found.pop("summary"), found.pop("ev")
+    found.pop("fitted")
+    source = found.pop("source")
+    key = s.reference
+    found.update({"rollout_mm": summ["rollout_mm"], "file": DISCOVERED_FILE,
+                  "reduction": _reduction(ref_sum["rollout_mm"][key], summ["rollout_mm"][key]),
+                  "reduction_by_horizon": {h: _reduction(ref_sum["rollout_mm"][h], summ["rollout_mm"][h])
+                                           for h in summ["rollout_mm"]},
+                  "t_stat": paired_t(ref_ev[key], ev[key], test_starts, max(1, int(round(VERDICT_BLOCK_S / dt))))})
+    say(f"discover: refitted with the discovered terms: {found['reduction']:+.1%} at {key} s")
+    return found, source
 
 
 # ---------------------------------------------------------------- data
@@ -230,10 +275,15 @@ class _Fitted:
     params: dict
     std: dict
     fit: dict
+    identifiable: bool = True
 
 
 def _fit_model(name, dtr, ttr, starts, length, s: Settings, say) -> JointModel:
-    """Fit a registered model on the training data; a parametric one is then refined on the windows."""
+    """Fit a registered model on the training data; a parametric one is then refined on the windows.
+
+    A parametric model's refit also starts from the integrated equation-error fit begun at the
+    model's initial parameters, so a poor quick fit cannot trap it.
+    """
     from cosim.plugins import lookup
 
     cls = lookup("model", name)
@@ -250,36 +300,86 @@ def _fit_model(name, dtr, ttr, starts, length, s: Settings, say) -> JointModel:
         model.dt_s, nfev = dtr.dt_s, 3 * s.max_nfev
     jm = JointModel(model)
     if supports_effects(model):
-        fit_joint(jm, ttr, starts, length, max_nfev=nfev, progress=say)
+        fit_joint(jm, ttr, starts, length, max_nfev=nfev, fresh_starts=[_host_init(jm.host)], progress=say)
     return jm
 
 
+def _host_init(host) -> dict:
+    """The host model's own parameters at their initial values (a start that owes nothing to a fit)."""
+    return {q.name: q.init for q in host.all_params() if "." not in q.name}
+
+
 def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, say) -> _Fitted:
-    """The reference model plus ``effects``, all parameters refitted jointly from the reference's."""
+    """The reference model plus ``effects``, all parameters refitted jointly.
+
+    Starts: the reference's parameters with each effect's starts (its listed ones and those drawn
+    from the logged commands), and the equation-error fit from the host's initial parameters with
+    each of them (see :func:`cosim.identify.joint.fit_joint`).
+    """
     base_host = ref.host
     if ref.effects:  # rebuild from the plain host so the effects are not added twice
         base_host = type(ref.host)(**ref.host.options)
         base_host.dt_s = ref.dt_s
     jm = JointModel(base_host, [*ref.effects, *effects], base_params=ref.params())
-    extra = [st for e in effects for st in e.qualified_starts()]
-    res = fit_joint(jm, ttr, starts, length, max_nfev=s.max_nfev, extra_starts=extra, progress=say)
-    own = {q for e in effects for q in e.param_names()}
+    extra = [st for e in effects for st in e.qualified_starts(ttr.u, ttr.dt_s)]
+    defaults = {n: q.init for e in effects for n, q in zip(e.param_names(), e.params)}
+    host0 = _host_init(base_host)
+    fresh = [{**host0, **defaults, **st} for st in [{}, *extra]]
+    res = fit_joint(jm, ttr, starts, length, max_nfev=s.max_nfev, extra_starts=extra, fresh_starts=fresh,
+                    progress=say)
+    own = [q for e in effects for q in e.param_names()]
     units = {q.name: q.unit for q in jm.param_list}
     std = {n: (float(res.std[n]) if np.isfinite(res.std[n]) else None) for n in own}
-    params = {n: {"value": v, "std": std[n], "unit": units[n]} for n, v in res.params.items() if n in own}
+    params = {n: {"value": res.params[n], "std": std[n], "unit": units[n]} for n in own}
+    unseen = set(jm.conditioning.get("unseen", ()))
     return _Fitted(model=jm, params=params, std=std,
-                   fit={"rms_mm": res.rms_mm, "evaluations": res.evaluations, "status": res.status})
+                   fit={"rms_mm": res.rms_mm, "evaluations": res.evaluations, "status": res.status,
+                        "start": res.start},
+                   identifiable=not all(n in unseen or std[n] is None for n in own))
+
+
+# ---------------------------------------------------------------- noise floor
+
+
+def velocity_time_constant(jm: JointModel) -> float | None:
+    """The physical host's velocity time constant m / (Cd1 + Cd0 / 2) [s] (Cd0 at a mean sin(alpha)); None
+    for hosts without a drag parameter, inf without drag."""
+    prm = jm.prm
+    if "Cd1" not in prm or "mass_mg" not in jm.host.options:
+        return None
+    cd = prm["Cd1"] + 0.5 * prm.get("Cd0", 0.0)
+    return jm.host.options["mass_mg"] / (1000.0 * cd) if cd > 0 else float("inf")
+
+
+def _floor_time_constant(models) -> tuple[float, str]:
+    """(tau [s], where it came from): the median velocity time constant of the fits that are not degenerate."""
+    taus = []
+    for jm in models:
+        tau = velocity_time_constant(jm)
+        if tau is not None and TAU_RANGE_S[0] <= tau <= TAU_RANGE_S[1] and "Cd1" not in jm.conditioning.get(
+                "at_bound", ()):
+            taus.append(tau)
+    if not taus:
+        return TAU_DEFAULT_S, f"no fit gives a usable drag: {TAU_DEFAULT_S} s assumed"
+    return float(np.median(taus)), f"median of {len(taus)} fits"
+
+
+def _floor(tte, starts, lead, steps, sigma, tau_s, base_ev, seed) -> dict:
+    """{horizon: mean noise floor [mm] over the held-out windows valid at that horizon} (None without sigma)."""
+    if sigma is None:
+        return {h: None for h in steps}
+    per = noise_floor(tte, starts, lead, steps, sigma, tau_s, seed=seed)
+    return {h: float(np.mean(per[h][base_ev[h]["valid"]])) if base_ev[h]["valid"].any() else None for h in steps}
 
 
 # ---------------------------------------------------------------- summaries
 
 
 def _summary(ev: dict) -> dict:
-    out = {"rollout_mm": {}, "floor_mm": {}, "windows": {}}
+    out = {"rollout_mm": {}, "windows": {}}
     for h, r in ev.items():
         v = r["valid"]
         out["rollout_mm"][h] = float(np.mean(np.linalg.norm(r["err"][v], axis=1))) if v.any() else None
-        out["floor_mm"][h] = float(np.mean(r["floor"][v])) if v.any() and "floor" in r else None
         out["windows"][h] = int(v.sum())
     return out
 
@@ -292,8 +392,8 @@ def _rank_entry(effect, cand: _Fitted, ev, summ, ref_ev, ref_sum, key, starts, b
     red = {h: _reduction(ref_sum["rollout_mm"][h], summ["rollout_mm"][h]) for h in summ["rollout_mm"]}
     t = paired_t(ref_ev[key], ev[key], starts, block_rows)
     return {"effect": effect.name, "kind": effect.kind, "rollout_mm": summ["rollout_mm"],
-            "floor_mm": summ["floor_mm"], "reduction": red[key], "reduction_by_horizon": red, "t_stat": t,
-            "params": cand.params, "fit": cand.fit, "doc": effect.doc}
+            "reduction": red[key], "reduction_by_horizon": red, "t_stat": t, "identifiable": cand.identifiable,
+            "params": cand.params, "fit": cand.fit, "conditioning": cand.model.conditioning, "doc": effect.doc}
 
 
 def _fmt(d: dict) -> str:

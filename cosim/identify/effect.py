@@ -22,7 +22,7 @@ An effect is one of three kinds:
     reports along predicted trajectories ``traj`` (w, L + 1, 3) [mm]
     (row 0 is the start of each trajectory, rows are control periods apart).
 
-Parameters are :class:`Param` (initial value, bounds, unit). ``starts``
+Parameters are :class:`Param` (initial value, bounds, unit, typical scale). ``starts``
 lists further initial values ``{param: value}`` that a fit tries first (it
 keeps the one with the lowest cost), for effects whose cost is flat at
 their default start (a step-out frequency above every command).
@@ -49,13 +49,27 @@ KINDS = ("force", "input", "sensor")
 
 @dataclass(frozen=True)
 class Param:
-    """A fitted scalar: name, initial value, bounds, unit (for reports)."""
+    """A fitted scalar: name, initial value, bounds, unit (for reports), and a typical magnitude.
+
+    ``scale`` is the size of a meaningful change of the parameter (the
+    optimiser works on parameter / scale); None takes a tenth of a finite
+    range, else the larger of |init| and 1e-3.
+    """
 
     name: str
     init: float
     lo: float = -math.inf
     hi: float = math.inf
     unit: str = ""
+    scale: float | None = None
+
+    def typical(self) -> float:
+        """The scale the optimiser uses (see the class doc)."""
+        if self.scale is not None:
+            return float(self.scale)
+        if math.isfinite(self.hi - self.lo):
+            return 0.1 * (self.hi - self.lo)
+        return max(abs(self.init), 1e-3)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,6 +85,9 @@ class Effect:
         doc: one paragraph: the physics and the form, with units.
         transform: transform callable (kinds ``"input"`` and ``"sensor"``).
         starts: further initial values to try, ``({param: value}, ...)``.
+        data_starts: optional ``data_starts(u, dt_s) -> [{param: value}, ...]``:
+            starts that depend on the logged commands u (n, 3) [Hz] (NaN rows
+            possible), e.g. step-out frequencies spread over the commanded band.
     """
 
     name: str
@@ -80,14 +97,18 @@ class Effect:
     doc: str = ""
     transform: Callable | None = None
     starts: tuple[dict, ...] = field(default=())
+    data_starts: Callable | None = None
 
     def param_names(self) -> list[str]:
         """Fully qualified names ``effect.param`` used in models, reports and files."""
         return [f"{self.name}.{p.name}" for p in self.params]
 
-    def qualified_starts(self) -> list[dict]:
-        """:attr:`starts` keyed by fully qualified parameter names."""
-        return [{f"{self.name}.{k}": float(v) for k, v in s.items()} for s in self.starts]
+    def qualified_starts(self, u: np.ndarray | None = None, dt_s: float | None = None) -> list[dict]:
+        """:attr:`starts` (and, given the commands u (n, 3) [Hz], :attr:`data_starts`) by qualified names."""
+        starts = list(self.starts)
+        if self.data_starts is not None and u is not None:
+            starts += list(self.data_starts(u, dt_s))
+        return [{f"{self.name}.{k}": float(v) for k, v in s.items()} for s in starts]
 
     def summary(self) -> str:
         """The doc's opening phrase, up to its first colon (for listings, <= 90 characters)."""

@@ -24,7 +24,7 @@ a small linear least-squares step on the rollout's sensitivity to them
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -32,6 +32,11 @@ from scipy.optimize import least_squares
 from cosim.identify.effect import split_kinds
 
 DV = 1.0  # velocity perturbation for the sensitivities [mm/s]
+SHORT_NFEV = 6  # evaluations of the short refinement of each promising start
+KEEP_STARTS = 2  # starts refined briefly before the best one is refined fully
+EE_WINDOWS = 200  # training windows the equation-error starts use
+EE_NFEV = 15  # evaluations of each equation-error fit
+TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
 
 
@@ -56,9 +61,10 @@ class JointModel:
         self.host = host
         self.param_list = list(host.all_params()) if supports_effects(host) else []
         for e in (*self.inputs, *self.sensors):
-            self.param_list += [type(q)(f"{e.name}.{q.name}", q.init, q.lo, q.hi, q.unit) for q in e.params]
+            self.param_list += [replace(q, name=f"{e.name}.{q.name}") for q in e.params]
         self.names = [q.name for q in self.param_list]
         self.std: dict = {}  # standard errors after fit_joint
+        self.conditioning: dict = {}  # after fit_joint, see conditioning()
         start = {q.name: q.init for q in self.param_list}
         start.update(host.params() if supports_effects(host) else {})
         start.update(base_params or {})
@@ -79,6 +85,10 @@ class JointModel:
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         return np.array([q.lo for q in self.param_list]), np.array([q.hi for q in self.param_list])
+
+    def scales(self) -> np.ndarray:
+        """(P,) typical magnitude of each parameter (:meth:`Param.typical`): the optimiser's units."""
+        return np.array([q.typical() for q in self.param_list])
 
     def clip(self, theta: np.ndarray) -> np.ndarray:
         """theta moved strictly inside the bounds (least_squares needs an interior start)."""
@@ -149,33 +159,26 @@ class JointModel:
 
     # ------------------------------------------------------------ evaluation
 
-    def evaluate(self, tl, starts: np.ndarray, lead: int, steps: dict, sigma_mm=None, draws: int = 4, seed: int = 0):
+    def evaluate(self, tl, starts: np.ndarray, lead: int, steps: dict):
         """Open-loop errors ``steps[key]`` steps after a lead-in of ``lead`` steps.
 
         Args:
             starts: (w,) window start rows (the lead-in's first row).
             steps: {horizon key: steps after the lead-in}.
-            sigma_mm: (3,) measurement noise per axis; if given, also the error a
-                perfect model would show with that noise (the noise floor).
         Returns:
-            {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm],
-                   "floor": (w,) expected norm for a perfect model (if sigma_mm)}}
+            {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm]}}
         """
         length = lead + max(steps.values())
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
         fit_rows[:, : lead + 1] = True
-        pred, S, G = self.projected(tl, starts, length, fit_rows, passes=2)
+        pred, _, _ = self.projected(tl, starts, length, fit_rows, passes=2)
         target = targets(tl, starts, length)
         out = {}
-        floors = _floor_draws(S, G, fit_rows & np.all(np.isfinite(target), axis=2), lead, steps, sigma_mm,
-                              draws, seed) if sigma_mm is not None else {}
         for key, k in steps.items():
             row = lead + k
             valid = (tl.run[starts] >= row) & np.all(np.isfinite(target[:, row]), axis=1)
             err = np.where(valid[:, None], pred[:, row] - np.nan_to_num(target[:, row]), np.nan)
             out[key] = {"valid": valid, "err": err}
-            if key in floors:
-                out[key]["floor"] = floors[key]
         return out
 
 
@@ -187,7 +190,7 @@ def targets(tl, starts: np.ndarray, length: int) -> np.ndarray:
     return out
 
 
-def _floor_draws(S, G, use, lead, steps, sigma, draws, seed) -> dict:
+def floor_draws(S, G, use, lead, steps, sigma, draws, seed) -> dict:
     """Per-window expected error norm of a perfect model under white noise ``sigma`` (3,) [mm]."""
     rng = np.random.default_rng(seed)
     sigma = np.asarray(sigma, dtype=float)
@@ -219,13 +222,21 @@ class FitResult:
 
 
 def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int = 30,
-              extra_starts=(), progress=None) -> FitResult:
+              extra_starts=(), fresh_starts=(), progress=None) -> FitResult:
     """Fit all parameters of ``jm`` on windows of ``length`` steps at rows ``starts``.
 
-    ``extra_starts`` are ``{name: value}`` dicts tried (one residual each)
-    besides the current parameters; the lowest cost is refined. Standard
-    errors come from the Jacobian at the solution, sigma^2 (J^T J)^-1,
-    inflated by how often each measurement enters overlapping windows.
+    Starts: the current parameters; each ``extra_starts`` dict ``{name: value}``
+    applied to them; and, for continuous-time hosts, the integrated
+    equation-error fit (:mod:`cosim.identify.equation_error`) from each
+    ``fresh_starts`` dict applied to the current parameters (all parameters
+    free: a start that does not inherit a degenerate previous fit). The
+    :data:`KEEP_STARTS` cheapest are refined for :data:`SHORT_NFEV`
+    evaluations, the best of them for up to ``max_nfev`` more; the optimiser
+    works in units of each parameter's typical scale. Standard errors come
+    from the Jacobian at the solution, sigma^2 (J^T J)^-1, inflated by how
+    often each measurement enters overlapping windows;
+    ``extra["conditioning"]`` says how well the data pin the parameters down
+    (:func:`conditioning`).
     """
     fit_rows = np.ones((len(starts), length + 1), dtype=bool)
     target = targets(tl, starts, length)
@@ -240,30 +251,96 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
         r = np.where(use[..., None], pred - np.nan_to_num(target), 0.0)
         return r.reshape(-1)
 
-    candidates = [jm.clip(jm.theta)]
-    for extra in extra_starts:
+    def applied(values: dict) -> np.ndarray:
         th = jm.theta.copy()
-        for name, value in extra.items():
+        for name, value in values.items():
             th[jm.names.index(name)] = value
-        candidates.append(jm.clip(th))
-    costs = [float(np.sum(residual(th) ** 2)) for th in candidates]
-    best = int(np.argmin(costs))
+        return jm.clip(th)
+
+    theta_now = jm.clip(jm.theta)
+    candidates = [theta_now] + [applied(extra) for extra in extra_starts]
+    if fresh_starts and supports_equation_error(jm):
+        from cosim.identify.equation_error import EquationError
+
+        sub = starts if len(starts) <= EE_WINDOWS else starts[:: int(np.ceil(len(starts) / EE_WINDOWS))]
+        ee = EquationError(jm, tl, sub, length)
+        fresh = [applied(f) for f in fresh_starts]
+        candidates += [jm.clip(ee.fit(th, max_nfev=EE_NFEV)[0]) for th in fresh]
+        jm._set(theta_now)
+    costs = np.array([float(np.sum(residual(th) ** 2)) for th in candidates])
+    costs[~np.isfinite(costs)] = np.inf
+    order = _promising(costs, n_inherited=len(candidates) - (len(fresh_starts) if fresh_starts and
+                                                             supports_equation_error(jm) else 0))
     lo, hi = jm.bounds()
-    r0 = residual(candidates[best])
-    res = least_squares(residual, candidates[best], bounds=(lo, hi), x_scale="jac", method="trf",
-                        max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
+    scale = jm.scales()
+    r0 = residual(candidates[order[0]])
+    short = [least_squares(residual, candidates[i], bounds=(lo, hi), x_scale=scale, method="trf",
+                           max_nfev=SHORT_NFEV, ftol=1e-6, xtol=1e-7) for i in order]
+    k = int(np.argmin([r.cost for r in short]))
+    res = short[k]
+    if res.status == 0:  # the evaluation budget ran out: carry on from there
+        res = least_squares(residual, res.x, bounds=(lo, hi), x_scale=scale, method="trf",
+                            max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
     jm._set(res.x)
     n_used = int(use.sum()) * 3
     rows_used = np.zeros(tl.n, dtype=bool)
     rows_used[(starts[:, None] + np.arange(length + 1)[None, :])[use]] = True
     std = _standard_errors(res.jac, res.fun, n_used, 3 * int(rows_used.sum()))
     jm.std = {n: float(x) for n, x in zip(jm.names, std)}
+    jm.conditioning = conditioning(jm, res.x, res.jac)
     if progress:
         progress(f"fit {len(starts)} windows x {length} steps: rms {math.sqrt(np.mean(r0 ** 2) * r0.size / n_used):.3f}"
-                 f" -> {math.sqrt(2 * res.cost / n_used):.3f} mm ({counter['n']} evaluations)")
+                 f" -> {math.sqrt(2 * res.cost / n_used):.3f} mm ({counter['n']} evaluations, "
+                 f"start {order[k]} of {len(candidates)})")
     return FitResult(params=jm.params(), std=dict(zip(jm.names, std)),
                      rms_mm=math.sqrt(2 * res.cost / n_used), rms_start_mm=math.sqrt(float(np.sum(r0 ** 2)) / n_used),
-                     evaluations=counter["n"], status=int(res.status), start=best)
+                     evaluations=counter["n"], status=int(res.status), start=order[k],
+                     extra={"conditioning": jm.conditioning})
+
+
+def _promising(costs: np.ndarray, n_inherited: int) -> list[int]:
+    """Indices of the starts to refine: the cheapest inherited one, the cheapest fresh one (the
+    equation-error starts, from index ``n_inherited`` on: a different basin even when its cost is
+    higher), then the cheapest others, :data:`KEEP_STARTS` in all."""
+    ranked = [int(i) for i in np.argsort(costs, kind="stable") if np.isfinite(costs[i])]
+    picks = [next((i for i in ranked if i < n_inherited), None), next((i for i in ranked if i >= n_inherited), None)]
+    picks = [i for i in picks if i is not None]
+    picks += [i for i in ranked if i not in picks][: max(KEEP_STARTS - len(picks), 0)]
+    return picks or [0]
+
+
+def supports_equation_error(jm) -> bool:
+    """True when the equation-error starts apply: a continuous-time host with parameters."""
+    return supports_effects(jm.host) and hasattr(jm.host, "predict_t")
+
+
+def conditioning(jm: JointModel, theta: np.ndarray, J: np.ndarray) -> dict:
+    """How well the data pin the fitted parameters down.
+
+    Returns ``{"at_bound": [names], "condition": float, "tradeoffs": [[a, b, corr]], "unseen": [names]}``:
+    parameters within 1e-6 of a scale from a finite bound; the condition number of the Jacobian in
+    scaled units; pairs whose estimates are correlated beyond :data:`TRADEOFF_CORR` (the data
+    cannot tell them apart: one can stand in for the other); parameters the residuals do not depend on.
+    """
+    J = np.asarray(J) * jm.scales()[None, :]
+    lo, hi = jm.bounds()
+    tol = 1e-6 * jm.scales()
+    at_bound = [n for n, t, a, b in zip(jm.names, theta, lo, hi) if abs(t - a) <= tol[jm.names.index(n)]
+                or abs(b - t) <= tol[jm.names.index(n)]]
+    col = np.linalg.norm(J, axis=0)
+    seen = col > 1e-9 * max(float(col.max()), 1e-300)
+    unseen = [n for n, ok in zip(jm.names, seen) if not ok]
+    Js = J[:, seen] / col[seen]
+    sv = np.linalg.svd(Js, compute_uv=False) if Js.size else np.ones(1)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+    cov = np.linalg.pinv(Js.T @ Js)
+    d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    corr = cov / np.outer(d, d)
+    names = [n for n, ok in zip(jm.names, seen) if ok]
+    pairs = [[names[i], names[j], float(corr[i, j])] for i in range(len(names)) for j in range(i + 1, len(names))
+             if abs(corr[i, j]) >= TRADEOFF_CORR]
+    pairs.sort(key=lambda x: -abs(x[2]))
+    return {"at_bound": at_bound, "condition": cond, "tradeoffs": pairs, "unseen": unseen}
 
 
 def _standard_errors(J, r, n_used: int, n_distinct: int) -> np.ndarray:

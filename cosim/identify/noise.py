@@ -8,11 +8,21 @@ deviation is taken after dropping values beyond 5 robust scales (the few
 outliers the cleaning left); a plain median-based scale would snap to the
 camera's pixel grid. Only runs of four measured positions at regular steps
 are used.
+
+The noise floor (:func:`noise_floor`) is the open-loop error a perfect model
+would show: each window's initial state is fitted on the lead-in's noisy
+positions and the error of that fit carries to the horizon. How far an
+initial-velocity error carries depends only on the swimmer's velocity time
+constant tau, so the floor uses first-order dynamics with that tau, not the
+sensitivities of whatever model was fitted: a degenerate fit (no drag, an
+initial-velocity error carried forever) cannot inflate it.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from cosim.identify.joint import RIDGE, floor_draws
 
 D3_GAIN = np.sqrt(20.0)  # |(-1, 3, -3, 1)|
 IQR_TO_SIGMA = 1 / 1.349
@@ -52,3 +62,25 @@ def _trimmed_std(x: np.ndarray) -> float:
     scale = max((q3 - q1) * IQR_TO_SIGMA, np.mean(np.abs(x)) * 1.25, 1e-9)
     x = x[np.abs(x) <= TRIM * scale]
     return float(np.sqrt(np.mean(x * x)))
+
+
+def noise_floor(tl, starts: np.ndarray, lead: int, steps: dict, sigma_mm, tau_s: float, draws: int = 8,
+                seed: int = 0) -> dict:
+    """{horizon key: (w,) expected error norm [mm] of a perfect model} for windows at ``starts``.
+
+    Position sensitivity to the initial state along a window, first-order velocity response:
+    p_k = p_0 + v_0 tau (1 - exp(-k dt / tau)); the initial state is fitted on rows 0..lead
+    (those measured), white noise ``sigma_mm`` (3,) on every measurement.
+    """
+    length = lead + max(steps.values())
+    rows = starts[:, None] + np.arange(length + 1)[None, :]
+    measured = tl.measured[np.minimum(rows, tl.n - 1)] & (rows < tl.n)
+    use = np.zeros_like(measured)
+    use[:, : lead + 1] = measured[:, : lead + 1]
+    g = tau_s * -np.expm1(-np.arange(length + 1) * tl.dt_s / tau_s)  # (L + 1,)
+    S = np.zeros((len(starts), length + 1, 3, 6))
+    S[..., :3] = np.eye(3)
+    S[..., 3:] = g[None, :, None, None] * np.eye(3)
+    Su = S * use[..., None, None]
+    G = np.einsum("wkai,wkaj->wij", Su, Su) + RIDGE
+    return floor_draws(S, G, use, lead, steps, sigma_mm, draws, seed)

@@ -33,6 +33,9 @@ def write_outputs(diag, out_dir) -> list[Path]:
     files = [out / "diagnosis.json"]
     files[0].write_text(json.dumps(diag.result, indent=2, default=json_default) + "\n")
     files += write_plots(diag, out)
+    if diag.discovered_source:
+        files.append(out / diag.result["discovered"]["file"])
+        files[-1].write_text(diag.discovered_source)
     files.append(write_report(diag, out, [f.name for f in files if f.suffix == ".png"]))
     files.append(write_recording(diag, out / "diagnosis.rrd"))
     return files

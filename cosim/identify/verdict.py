@@ -12,6 +12,9 @@ the reference horizon
 Otherwise the verdict is "the model is at the noise floor" when the
 baseline's error is within :data:`AT_FLOOR` of the floor, else "no listed
 effect explains the remaining error" with the localisation clues.
+Candidates whose parameters do not change the predictions are not
+identifiable and never named. :func:`fit_notes` says in words where a fit
+is degenerate or two parameters trade off.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 MIN_REDUCTION = 0.10
+NOTE_CONDITION = 1e8  # a scaled Jacobian's condition number beyond which the parameters are undetermined
 MIN_T = 3.0
 MIN_EXPLAINED = 0.25
 AT_FLOOR = 0.25  # error <= (1 + AT_FLOOR) x floor
@@ -47,7 +51,7 @@ def verdict(result: dict, key: str) -> dict:
     horizon = f"{key} s"
     excess = max(err - floor, 0.0) if err is not None and floor is not None else 0.0
     prefix = _added_text(result, key)
-    best = result["ranking"][0] if result["ranking"] else None
+    best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
     if best is not None and err:
         gain = err - best["rollout_mm"][key]
         explained = gain / excess if excess > 0 else (1.0 if floor is None else 0.0)
@@ -71,8 +75,21 @@ def verdict(result: dict, key: str) -> dict:
                  f"(t = {best['t_stat']:.1f}), which is not enough." if best else "")
     floor_text = f"a noise floor of {floor:.2f} mm" if floor is not None else "an unknown noise floor"
     text = (f"no listed effect explains the remaining error: {err:.2f} mm at {horizon} against {floor_text}."
-            f"{best_text} Clues: " + ("; ".join(clues) if clues else "none stand out") + ".")
+            f"{best_text} Clues: " + ("; ".join(clues) if clues else "none stand out") + "."
+            + _discovered_text(result, key))
     return {"effect": None, "status": "unexplained", "explanation": prefix + text}
+
+
+def _discovered_text(result: dict, key: str) -> str:
+    found = result.get("discovered")
+    if not found:
+        return " Next: --discover fits a sparse combination of candidate force terms to what is left."
+    if found["status"] != "found":
+        return f" Discovery: {found['explanation']}."
+    words = "; ".join(found["words"])
+    return (f" Discovered form: {words}. Refitted with it, the held-out error at {key} s falls by "
+            f"{found['reduction']:.0%} (t = {found['t_stat']:.1f}); it is written to {found['file']}: rename it, "
+            f"edit its form and refit with --effects-file {found['file']} --add discovered.")
 
 
 def _added_text(result: dict, key: str) -> str:
@@ -88,3 +105,40 @@ def _params_text(params: dict) -> str:
     return ", ".join(f"{n.split('.', 1)[-1]} = {p['value']:.4g} +- "
                      f"{'?' if p['std'] is None else format(p['std'], '.2g')} {p['unit']}".rstrip()
                      for n, p in params.items())
+
+
+def fit_notes(result: dict) -> list[str]:
+    """Sentences on the quality of the fits: degenerate baseline, trade-offs, unidentifiable candidates."""
+    notes = []
+    cond = result["baseline"].get("conditioning") or {}
+    if "Cd1" in cond.get("at_bound", ()):
+        notes.append("the baseline fit is degenerate: its linear drag Cd1 sits at its bound 0, so it predicts that "
+                     "the swimmer keeps any velocity it has; the model's form cannot represent these logs, and "
+                     "what is missing changes how the speed responds to the command (a step-out, a lag, a drag "
+                     "law) more than a small extra force would")
+    if cond.get("condition", 0.0) > NOTE_CONDITION:
+        notes.append(f"the baseline's parameters are nearly undetermined by these logs (condition number "
+                     f"{cond['condition']:.1e}): richer excitation (spin rates, turns) would pin them down")
+    for a, b, c in cond.get("tradeoffs", ())[:2]:
+        notes.append(f"in the baseline, {a} and {b} trade off (correlation {c:+.2f}): the logs cannot tell them "
+                     "apart, so their values are not meaningful one by one")
+    best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
+    if best is not None:
+        own = set(best["params"])
+        ccond = best.get("conditioning") or {}
+        for a, b, c in ccond.get("tradeoffs", ()):
+            if (a in own) != (b in own):
+                mine, other = (a, b) if a in own else (b, a)
+                notes.append(f"{mine} trades off with {other} (correlation {c:+.2f}): in these logs the effect and "
+                             f"a change of {other} look alike, so the reduction is real but the split between "
+                             "them is uncertain")
+                break
+        pinned = [n for n in ccond.get("at_bound", ()) if n in own]
+        if pinned:
+            notes.append(f"{', '.join(pinned)} of {best['effect']} sits at a bound of its range: the fit wants more "
+                         "than the form allows")
+    hidden = [e["effect"] for e in result["ranking"] if not e.get("identifiable", True)]
+    if hidden:
+        notes.append(f"not identifiable from these logs: {', '.join(hidden)} (their parameters do not change the "
+                     "predictions: the logs never reach the conditions where they act)")
+    return notes

@@ -37,12 +37,12 @@ def _actuation_lag(u, dt_s, prm):
 ACTUATION_LAG = Effect(
     name="actuation_lag",
     kind="input",
-    params=(Param("tau", 0.0, 0.0, 0.5, "s"),),
+    params=(Param("tau", 0.0, 0.0, 1.0, "s", 0.05),),
     transform=_actuation_lag,
     doc="Lag between the command and the field: coil inductance (L/R, or the envelope of a series RLC "
         "drive) and amplifier bandwidth make the rotating field follow a new command with a first-order "
         "lag; the swimmer follows omega filtered with time constant tau [s] (fitted).",
-    starts=({"tau": 0.03}, {"tau": 0.08}, {"tau": 0.2}),
+    starts=({"tau": 0.03}, {"tau": 0.1}, {"tau": 0.3}),
 )
 
 
@@ -57,12 +57,12 @@ def _heading_lag(u, dt_s, prm):
 HEADING_LAG = Effect(
     name="heading_lag",
     kind="input",
-    params=(Param("tau", 0.0, 0.0, 0.5, "s"),),
+    params=(Param("tau", 0.0, 0.0, 1.0, "s", 0.05),),
     transform=_heading_lag,
     doc="The swimmer's body turns towards a new rotation axis through its rotational drag (time constant "
         "c_perp / (m B)), so its thrust points along a lagged axis: the command's direction filtered by a "
         "first-order lag of time constant tau [s], its magnitude (the spin rate) unchanged.",
-    starts=({"tau": 0.03}, {"tau": 0.1}),
+    starts=({"tau": 0.03}, {"tau": 0.1}, {"tau": 0.3}),
 )
 
 
@@ -77,12 +77,12 @@ def _sensor_latency(traj, dt_s, prm):
 SENSOR_LATENCY = Effect(
     name="sensor_latency",
     kind="sensor",
-    params=(Param("delay", 0.0, 0.0, 5.0, "steps"),),
+    params=(Param("delay", 0.0, 0.0, 10.0, "steps", 0.5),),
     transform=_sensor_latency,
     doc="Camera latency (exposure, transfer, image processing): the position logged at t_i is where the "
         "swimmer was at t_i - delay dt; delay [control periods] is fitted as a fraction or a number of "
         "steps, by linear interpolation along the predicted path.",
-    starts=({"delay": 0.5}, {"delay": 1.0}, {"delay": 2.0}),
+    starts=({"delay": 0.5}, {"delay": 1.5}, {"delay": 4.0}),
 )
 
 TRANSFORM_EFFECTS = (ACTUATION_LAG, HEADING_LAG, SENSOR_LATENCY)

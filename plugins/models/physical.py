@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -41,13 +42,13 @@ from cosim.errors import UserError
 from cosim.identify.model import Model
 from cosim.identify.terms import ForceTerm, Param
 
-BASE_PARAMS = (
-    Param("k", 0.1, unit="uN/Hz"),
-    Param("Cd0", 0.0, 0.0, math.inf, "uN s/mm"),
-    Param("Cd1", 0.05, 0.0, math.inf, "uN s/mm"),
-    Param("Cl0", 0.0, unit="uN s/mm"),
-    Param("Fvs", 0.0, unit="uN"),
-    Param("Fmax", 0.0, unit="uN"),
+BASE_PARAMS = (  # scales: typical magnitudes for a mm-sized swimmer (tau_v ~ 0.03-0.5 s, 1-5 mm/s per Hz)
+    Param("k", 0.1, unit="uN/Hz", scale=0.1),
+    Param("Cd0", 0.0, 0.0, math.inf, "uN s/mm", scale=0.02),
+    Param("Cd1", 0.05, 0.0, math.inf, "uN s/mm", scale=0.05),
+    Param("Cl0", 0.0, unit="uN s/mm", scale=0.02),
+    Param("Fvs", 0.0, unit="uN", scale=0.2),
+    Param("Fmax", 0.0, unit="uN", scale=0.1),
 )
 BASE_NAMES = tuple(p.name for p in BASE_PARAMS)
 
@@ -139,7 +140,7 @@ class PhysicalModel(Model):
         """Base and extra-term parameters, extra ones named ``term.param``."""
         out = list(BASE_PARAMS)
         for term in self.terms:
-            out += [Param(f"{term.name}.{q.name}", q.init, q.lo, q.hi, q.unit) for q in term.params]
+            out += [replace(q, name=f"{term.name}.{q.name}") for q in term.params]
         return out
 
     def set_params(self, params: dict) -> None:
