@@ -53,6 +53,7 @@ MIN_FIT_WINDOWS = 60
 MIN_EVAL_WINDOWS = 30
 EFFECT_MODEL = "physical"
 DISCOVERED_FILE = "discovered_effect.py"
+DISCOVER_ABOVE_FLOOR = 1.5  # a named effect leaving more than this x the floor: discovery runs too
 TAU_RANGE_S = (0.005, 5.0)  # velocity time constants a non-degenerate fit can have
 TAU_DEFAULT_S = 0.2  # for the noise floor when no fit gives one
 
@@ -182,7 +183,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     result["fit_notes"] = fit_notes(result)
     result["verdict"] = verdict(result, s.reference)
     source = None
-    if s.discover or result["verdict"]["status"] == "unexplained":
+    if s.discover or result["verdict"]["status"] == "unexplained" or _left_above_floor(result, s.reference):
         result["discovered"], source = _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev,
                                                  ref_sum, s, dt, evaluate, say)
         result["verdict"] = verdict(result, s.reference)
@@ -197,6 +198,16 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     return Diagnosis(result=result, timeline=tall, starts=all_starts, lead=lead, steps=steps,
                      errors={"baseline": err_all, "after": after_all}, features=features, curves=curves,
                      discovered_source=source)
+
+
+def _left_above_floor(result: dict, key: str) -> bool:
+    """True when even the named effect leaves the error well above the noise floor (something else is missing)."""
+    named = result["verdict"]["effect"]
+    floor = result["noise"]["floor_mm"][key]
+    if named is None or not floor:
+        return False
+    left = next(e for e in result["ranking"] if e["effect"] == named)["rollout_mm"][key]
+    return left > DISCOVER_ABOVE_FLOOR * floor
 
 
 def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref_sum, s, dt, evaluate, say):
@@ -342,13 +353,12 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, sa
 
 
 def velocity_time_constant(jm: JointModel) -> float | None:
-    """The physical host's velocity time constant m / (Cd1 + Cd0 / 2) [s] (Cd0 at a mean sin(alpha)); None
-    for hosts without a drag parameter, inf without drag."""
+    """The physical host's velocity time constant m / Cd1 [s] (the drag along the swimmer's axis, where it
+    mostly swims: sin(alpha) ~ 0); None for hosts without a drag parameter, inf without drag."""
     prm = jm.prm
     if "Cd1" not in prm or "mass_mg" not in jm.host.options:
         return None
-    cd = prm["Cd1"] + 0.5 * prm.get("Cd0", 0.0)
-    return jm.host.options["mass_mg"] / (1000.0 * cd) if cd > 0 else float("inf")
+    return jm.host.options["mass_mg"] / (1000.0 * prm["Cd1"]) if prm["Cd1"] > 0 else float("inf")
 
 
 def _floor_time_constant(models) -> tuple[float, str]:

@@ -35,9 +35,10 @@ from cosim.identify.effect import Effect, Param
 AXES = "xyz"
 WALL_MM = 75.0  # the tank's half size: walls at +-75 mm
 FD_STEP = 1e-3  # coefficient perturbation for the sensitivities, in units of the term's scale
-MIN_TRAIN_WINDOWS = 200
+MIN_TRAIN_WINDOWS = 300
 MIN_TEST_WINDOWS = 60
-CHOICE_TOLERANCE = 0.02  # sparsest form whose held-out error is within this of the best
+CHOICE_TOLERANCE = 0.02
+RIDGE = 1e-3  # ridge of STLSQ's least squares on unit-norm columns (near-collinear terms stay finite)  # sparsest form whose held-out error is within this of the best
 
 
 @dataclass(frozen=True)
@@ -157,17 +158,16 @@ def discover(reference, ttr, fit_starts, fit_len, tte, test_starts, fit_fn, say=
     Jp = J_tr - Q @ (Q.T @ J_tr)
     rp = r_tr - Q @ (Q.T @ r_tr)
     norms = np.linalg.norm(Jp, axis=0)
-    keep = norms > 1e-9 * max(norms.max(), 1e-300)
-    full = np.zeros(n_terms)
-    full[keep] = np.linalg.lstsq(Jp[:, keep] / norms[keep], rp, rcond=None)[0]
-    top = float(np.max(np.abs(full))) if keep.any() else 0.0
+    keep = norms > 1e-6 * max(norms.max(), 1e-300)
+    X = Jp[:, keep] / norms[keep]  # unit columns: thresholds compare like with like
+    top = float(np.max(np.abs(X.T @ rp))) if keep.any() else 0.0  # the largest single-term coefficient
     base_err = _rms(r_te)
     path = []
     for thr in top * np.geomspace(0.9, 1e-3, 14):
-        opt = STLSQ(threshold=thr, alpha=1e-6 * top, max_iter=30, normalize_columns=False)
+        opt = STLSQ(threshold=thr, alpha=RIDGE, max_iter=30, normalize_columns=False)
         with warnings.catch_warnings():  # a threshold above every coefficient is a valid (empty) answer here
             warnings.simplefilter("ignore", UserWarning)
-            opt.fit(Jp[:, keep] / norms[keep], rp[:, None])
+            opt.fit(X, rp[:, None])
         xi = np.zeros(n_terms)
         xi[keep] = opt.coef_[0] / norms[keep]
         eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]  # host adjustment for these terms

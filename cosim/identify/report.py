@@ -188,8 +188,24 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
               f"| rank | effect | kind | error at {r['reference_horizon_s']:g} s [mm] | reduction | t | parameters |",
               "|---|---|---|---|---|---|---|"]
     for i, e in enumerate(r["ranking"], 1):
+        if not e.get("identifiable", True):
+            lines.append(f"| - | {e['effect']} | {e['kind']} | not identifiable from these logs | | | |")
+            continue
         lines.append(f"| {i} | {e['effect']} | {e['kind']} | {_f(e['rollout_mm'][key])} | {e['reduction']:+.1%} "
                      f"| {e['t_stat']:.1f} | {_params(e['params'])} |")
+    if r.get("fit_notes"):
+        lines += ["", "Notes on the fits:", ""] + [f"- {n}" for n in r["fit_notes"]]
+    found = r.get("discovered")
+    if found:
+        lines += ["", "## The form of what is missing (sparse regression of the residual force)", ""]
+        if found["status"] == "found":
+            lines += [f"- {w}" for w in found["words"]]
+            lines += ["", f"Refitted with these {len(found['terms'])} terms, the held-out error at "
+                          f"{r['reference_horizon_s']:g} s falls by {found['reduction']:.0%} "
+                          f"(t = {found['t_stat']:.1f}). The effect file `{found['file']}` holds them: rename it, "
+                          f"edit its form and refit with `--effects-file {found['file']} --add discovered`."]
+        else:
+            lines.append(found["explanation"] + ".")
     loc = r["localisation"]
     lines += ["", "## Where, when and under which conditions the error concentrates", "",
               f"Error of {loc['model']} at {r['reference_horizon_s']:g} s on {loc['windows']} windows of all logs "

@@ -13,8 +13,11 @@ Otherwise the verdict is "the model is at the noise floor" when the
 baseline's error is within :data:`AT_FLOOR` of the floor, else "no listed
 effect explains the remaining error" with the localisation clues.
 Candidates whose parameters do not change the predictions are not
-identifiable and never named. :func:`fit_notes` says in words where a fit
-is degenerate or two parameters trade off.
+identifiable and never named. When a discovered form (:mod:`.discover`)
+lowers the error by :data:`DISCOVERED_MARGIN` more than the best listed
+effect, the verdict says so instead of naming that effect.
+:func:`fit_notes` says in words where a fit is degenerate or two
+parameters trade off.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 MIN_REDUCTION = 0.10
+DISCOVERED_MARGIN = 0.10  # a discovered form must beat the best listed effect by this much to be preferred
 NOTE_CONDITION = 1e8  # a scaled Jacobian's condition number beyond which the parameters are undetermined
 MIN_T = 3.0
 MIN_EXPLAINED = 0.25
@@ -52,6 +56,17 @@ def verdict(result: dict, key: str) -> dict:
     excess = max(err - floor, 0.0) if err is not None and floor is not None else 0.0
     prefix = _added_text(result, key)
     best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
+    found = result.get("discovered") or {}
+    if (found.get("status") == "found" and err and found["reduction"] >= MIN_REDUCTION and found["t_stat"] >= MIN_T
+            and found["reduction"] >= (best["reduction"] if best else 0.0) + DISCOVERED_MARGIN):
+        best_text = (f"the best listed effect, {best['effect']}, lowers the held-out error at {horizon} by "
+                     f"{best['reduction']:.0%}, " if best else "")
+        text = (f"no listed effect explains the error as well as a form outside the library: {best_text}a sparse "
+                f"combination of force terms fitted to what is left lowers it by {found['reduction']:.0%} (from "
+                f"{err:.2f} to {found['rollout_mm'][key]:.2f} mm; t = {found['t_stat']:.1f}). "
+                + _sentence("; ".join(found["words"])) + f". It is written to {found['file']}: rename it, edit its "
+                f"form and refit with --effects-file {found['file']} --add discovered.")
+        return {"effect": None, "status": "discovered", "explanation": prefix + text}
     if best is not None and err:
         gain = err - best["rollout_mm"][key]
         explained = gain / excess if excess > 0 else (1.0 if floor is None else 0.0)
@@ -78,6 +93,10 @@ def verdict(result: dict, key: str) -> dict:
             f"{best_text} Clues: " + ("; ".join(clues) if clues else "none stand out") + "."
             + _discovered_text(result, key))
     return {"effect": None, "status": "unexplained", "explanation": prefix + text}
+
+
+def _sentence(text: str) -> str:
+    return text[:1].upper() + text[1:]
 
 
 def _discovered_text(result: dict, key: str) -> str:

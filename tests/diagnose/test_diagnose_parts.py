@@ -9,7 +9,8 @@ from cosim.identify import synthetic as syn
 from cosim.identify.dataset import Dataset
 from cosim.identify.effect import check_effect, known_effects
 from cosim.identify.joint import JointModel
-from cosim.identify.noise import noise_sigma_mm
+from cosim.identify.diagnose import velocity_time_constant
+from cosim.identify.noise import noise_floor, noise_sigma_mm
 from cosim.identify.timeline import Timeline
 from cosim.plugins import lookup
 
@@ -98,10 +99,17 @@ def test_noise_estimate_and_floor_of_a_perfect_model(synthetic):
     assert np.allclose(sigma, 0.1, rtol=0.1)
     jm = JointModel(plant)
     starts = tl.window_starts(10, 0.6, rows=11)[::2]
-    ev = jm.evaluate(tl, starts, 10, {"0.2": 10, "1.0": 50}, sigma_mm=sigma)
-    for r in ev.values():  # the true model's error is its noise floor
+    steps = {"0.2": 10, "1.0": 50}
+    ev = jm.evaluate(tl, starts, 10, steps)
+    tau = velocity_time_constant(jm)  # m / Cd1: the floor knows only this of the model
+    assert tau == pytest.approx(0.15, rel=0.01)
+    floor = noise_floor(tl, starts, 10, steps, sigma, tau)
+    for key, r in ev.items():  # the true model's error is the first-order noise floor
         err = np.mean(np.linalg.norm(r["err"][r["valid"]], axis=1))
-        assert err == pytest.approx(np.mean(r["floor"][r["valid"]]), rel=0.15)
+        assert err == pytest.approx(np.mean(floor[key][r["valid"]]), rel=0.15)
+    # a degenerate fit's "no drag" (tau -> infinity) would have doubled the floor at 1.0 s
+    far = noise_floor(tl, starts, 10, steps, sigma, 1e3)
+    assert np.mean(far["1.0"]) > 1.5 * np.mean(floor["1.0"])
 
 
 def test_time_block_split_keeps_halves_apart():
