@@ -26,6 +26,8 @@ it finishes; at the end one JSON object is printed:
     .venv/bin/python benchmarks/blind.py [--cases 60] [--seed 0] [--jobs 2] [--out runs/blind]
     .venv/bin/python benchmarks/blind.py --write-case outside:rotating_flow [--seed 3] --out DIR
 
+``--summarise OUT/cases.jsonl`` prints the figures of the cases recorded so
+far (a bench stopped midway keeps every finished case).
 ``--write-case GROUP[:EFFECT]`` only simulates one case into ``DIR/logs`` (and
 its true form into ``DIR/true_form.py``, its truth into ``DIR/case.json``):
 logs to try ``cosim diagnose`` on by hand.
@@ -33,13 +35,17 @@ logs to try ``cosim diagnose`` on by hand.
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
-import sys
-import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # one core per case: set before numpy loads (children fork)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -150,11 +156,19 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the case draw (default 0)")
     ap.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once (default 2)")
     ap.add_argument("--out", default=str(ROOT / "runs" / "blind"), help="folder for logs and cases.jsonl")
+    ap.add_argument("--only", choices=("library", "none", "outside"),
+                    help="run only the drawn cases of this group (the same cases as in the full draw)")
+    ap.add_argument("--summarise", metavar="CASES.jsonl",
+                    help="only print the figures of a (possibly unfinished) run's cases.jsonl")
     ap.add_argument("--write-case", metavar="GROUP[:EFFECT]",
                     help="only simulate one case (library|none|outside, e.g. outside:rotating_flow) into --out")
     args = ap.parse_args(argv)
     if args.cases < 1 or args.jobs < 1:
         ap.error("--cases and --jobs must be at least 1")
+    if args.summarise:
+        rows = [json.loads(line) for line in Path(args.summarise).read_text().splitlines() if line.strip()]
+        print(json.dumps(summarise(sorted(rows, key=lambda r: r["index"])), indent=2))
+        return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.write_case:
@@ -170,11 +184,9 @@ def main(argv=None) -> int:
                                                    "truth": case.truth, "regime": case.regime}, indent=2) + "\n")
         print(f"wrote {len(logs)} logs to {out / 'logs'} ({case.group} {case.effect or ''} {case.truth})")
         return 0
-    cases = blind_sim.draw_cases(args.cases, args.seed)
+    cases = [c for c in blind_sim.draw_cases(args.cases, args.seed) if args.only in (None, c.group)]
     lines = out / "cases.jsonl"
     lines.write_text("")
-    os.environ.setdefault("OMP_NUM_THREADS", "1")  # one core per case
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     records = []
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         futures = [pool.submit(_worker, (c, str(out))) for c in cases]

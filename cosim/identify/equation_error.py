@@ -124,7 +124,8 @@ class EquationError:
         def res(z):
             th = theta0.copy()
             th[free] = z
-            return self.residual(th)
+            with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
+                return np.nan_to_num(self.residual(th), nan=1e6, posinf=1e6, neginf=-1e6)
 
         out = least_squares(res, theta0[free], bounds=(lo[free], hi[free]), x_scale=jm.scales()[free],
                             method="trf", max_nfev=max_nfev, ftol=1e-8, xtol=1e-8)

@@ -33,7 +33,7 @@ from cosim.identify.effect import split_kinds
 
 DV = 1.0  # velocity perturbation for the sensitivities [mm/s]
 SHORT_NFEV = 6  # evaluations of the short refinement of each promising start
-KEEP_STARTS = 2  # starts refined briefly before the best one is refined fully
+KEEP_STARTS = 2  # starts refined briefly before the better one is refined fully
 EE_WINDOWS = 200  # training windows the equation-error starts use
 EE_NFEV = 15  # evaluations of each equation-error fit
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
@@ -171,7 +171,8 @@ class JointModel:
         length = lead + max(steps.values())
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
         fit_rows[:, : lead + 1] = True
-        pred, _, _ = self.projected(tl, starts, length, fit_rows, passes=2)
+        with np.errstate(all="ignore"):  # a model that diverges shows as a huge error, not a warning
+            pred, _, _ = self.projected(tl, starts, length, fit_rows, passes=2)
         target = targets(tl, starts, length)
         out = {}
         for key, k in steps.items():
@@ -230,8 +231,9 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     equation-error fit (:mod:`cosim.identify.equation_error`) from each
     ``fresh_starts`` dict applied to the current parameters (all parameters
     free: a start that does not inherit a degenerate previous fit). The
-    :data:`KEEP_STARTS` cheapest are refined for :data:`SHORT_NFEV`
-    evaluations, the best of them for up to ``max_nfev`` more; the optimiser
+    cheapest inherited and the cheapest fresh start (:func:`_promising`) are
+    refined for :data:`SHORT_NFEV` evaluations, the better of them for up to
+    ``max_nfev`` more; the optimiser
     works in units of each parameter's typical scale. Standard errors come
     from the Jacobian at the solution, sigma^2 (J^T J)^-1, inflated by how
     often each measurement enters overlapping windows;
@@ -247,9 +249,10 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     def residual(theta):
         counter["n"] += 1
         jm._set(theta)
-        pred, _, _ = jm.projected(tl, starts, length, fit_rows, u_eff=fixed_u)
-        r = np.where(use[..., None], pred - np.nan_to_num(target), 0.0)
-        return r.reshape(-1)
+        with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
+            pred, _, _ = jm.projected(tl, starts, length, fit_rows, u_eff=fixed_u)
+            r = np.where(use[..., None], pred - np.nan_to_num(target), 0.0)
+        return np.nan_to_num(r.reshape(-1), nan=1e6, posinf=1e6, neginf=-1e6)
 
     def applied(values: dict) -> np.ndarray:
         th = jm.theta.copy()
