@@ -235,6 +235,10 @@ def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref
                                            for h in summ["rollout_mm"]},
                   "t_stat": paired_t(ref_ev[key], ev[key], test_starts, max(1, int(round(VERDICT_BLOCK_S / dt))))})
     say(f"discover: refitted with the discovered terms: {found['reduction']:+.1%} at {key} s")
+    if not found["reduction"] > 0.0:  # the linearised choice did not survive the full refit (or it diverged)
+        return {"status": "none", "explanation": "the sparse form chosen on the linearised problem does not lower "
+                "the held-out error once refitted: what is left looks like noise, or a form the candidates cannot "
+                "express", "terms": found["terms"]}, None
     return found, source
 
 

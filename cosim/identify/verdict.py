@@ -14,8 +14,8 @@ baseline's error is within :data:`AT_FLOOR` of the floor, else "no listed
 effect explains the remaining error" with the localisation clues.
 Candidates whose parameters do not change the predictions are not
 identifiable and never named. When a discovered form (:mod:`.discover`)
-lowers the error by :data:`DISCOVERED_MARGIN` more than the best listed
-effect, the verdict says so instead of naming that effect.
+leaves at most 1 - :data:`DISCOVERED_MARGIN` of the error the best listed
+effect leaves, the verdict says so instead of naming that effect.
 :func:`fit_notes` says in words where a fit is degenerate or two
 parameters trade off.
 """
@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 MIN_REDUCTION = 0.10
-DISCOVERED_MARGIN = 0.10  # a discovered form must beat the best listed effect by this much to be preferred
+DISCOVERED_MARGIN = 0.3  # a discovered form is preferred when it cuts the best listed effect's error by this share
 NOTE_CONDITION = 1e8  # a scaled Jacobian's condition number beyond which the parameters are undetermined
 MIN_T = 3.0
 MIN_EXPLAINED = 0.25
@@ -57,8 +57,9 @@ def verdict(result: dict, key: str) -> dict:
     prefix = _added_text(result, key)
     best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
     found = result.get("discovered") or {}
+    best_left = best["rollout_mm"][key] if best and best["rollout_mm"][key] is not None else err
     if (found.get("status") == "found" and err and found["reduction"] >= MIN_REDUCTION and found["t_stat"] >= MIN_T
-            and found["reduction"] >= (best["reduction"] if best else 0.0) + DISCOVERED_MARGIN):
+            and found["rollout_mm"][key] <= (1.0 - DISCOVERED_MARGIN) * min(best_left, err)):
         best_text = (f"the best listed effect, {best['effect']}, lowers the held-out error at {horizon} by "
                      f"{best['reduction']:.0%}, " if best else "")
         text = (f"no listed effect explains the error as well as a form outside the library: {best_text}a sparse "
