@@ -158,7 +158,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "runs" / "blind"), help="folder for logs and cases.jsonl")
     ap.add_argument("--only", choices=("library", "none", "outside"),
                     help="run only the drawn cases of this group (the same cases as in the full draw)")
-    ap.add_argument("--summarise", metavar="CASES.jsonl",
+    ap.add_argument("--summarise", metavar="CASES.jsonl|OUT",
                     help="only print the figures of a (possibly unfinished) run's cases.jsonl")
     ap.add_argument("--write-case", metavar="GROUP[:EFFECT]",
                     help="only simulate one case (library|none|outside, e.g. outside:rotating_flow) into --out")
@@ -166,7 +166,11 @@ def main(argv=None) -> int:
     if args.cases < 1 or args.jobs < 1:
         ap.error("--cases and --jobs must be at least 1")
     if args.summarise:
-        rows = [json.loads(line) for line in Path(args.summarise).read_text().splitlines() if line.strip()]
+        path = Path(args.summarise)
+        path = path / "cases.jsonl" if path.is_dir() else path
+        if not path.is_file():
+            ap.error(f"--summarise {args.summarise}: no such file (a bench's --out folder or its cases.jsonl)")
+        rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
         print(json.dumps(summarise(sorted(rows, key=lambda r: r["index"])), indent=2))
         return 0
     out = Path(args.out)

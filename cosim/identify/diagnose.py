@@ -303,7 +303,8 @@ def _fit_model(name, dtr, ttr, starts, length, s: Settings, say) -> JointModel:
 
     cls = lookup("model", name)
     accepted = inspect.signature(cls.__init__).parameters
-    quick = {"seed": s.seed, "max_windows": 400, "max_nfev": 3, "horizon": 15}  # a start; refined below
+    # a start, refined below; a continuous-time model steps the logged commands as held over each step
+    quick = {"seed": s.seed, "max_windows": 400, "max_nfev": 3, "horizon": 15, "hold": "exact"}
     model = cls(**{k: v for k, v in quick.items() if k in accepted})
     nfev = s.max_nfev
     try:

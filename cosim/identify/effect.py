@@ -21,6 +21,10 @@ An effect is one of three kinds:
     ``transform(traj, dt_s, params) -> (w, L + 1, 3)``: what the camera
     reports along predicted trajectories ``traj`` (w, L + 1, 3) [mm]
     (row 0 is the start of each trajectory, rows are control periods apart).
+    A sensor effect that reports earlier positions (a latency) declares
+    ``lookback(params) -> steps``: the rollout then starts that many rows
+    before each window, so the transform reads a trajectory, not an
+    extrapolation, and the first rows it returns are dropped.
 
 Parameters are :class:`Param` (initial value, bounds, unit, typical scale). ``starts``
 lists further initial values ``{param: value}`` that a fit tries first (it
@@ -88,6 +92,8 @@ class Effect:
         data_starts: optional ``data_starts(u, dt_s) -> [{param: value}, ...]``:
             starts that depend on the logged commands u (n, 3) [Hz] (NaN rows
             possible), e.g. step-out frequencies spread over the commanded band.
+        lookback: optional ``lookback(params) -> int`` (kind ``"sensor"``): rows of
+            trajectory before row 0 that the transform reads (see the module doc).
     """
 
     name: str
@@ -98,6 +104,7 @@ class Effect:
     transform: Callable | None = None
     starts: tuple[dict, ...] = field(default=())
     data_starts: Callable | None = None
+    lookback: Callable | None = None
 
     def param_names(self) -> list[str]:
         """Fully qualified names ``effect.param`` used in models, reports and files."""

@@ -56,9 +56,13 @@ class JointModel:
             if not supports_effects(host):
                 raise ValueError(f"model {host.name!r} cannot include effects")
             opts = dict(host.options)
+            own = host.params()
             host = type(host)(**opts, terms=[*host.terms, *forces])
+            host.set_params(own)
             host.dt_s = self.dt_s
         self.host = host
+        # a host that steps step-mean velocities exactly needs each step's previous command
+        self._held = getattr(host, "options", {}).get("hold") == "exact"
         self.param_list = list(host.all_params()) if supports_effects(host) else []
         for e in (*self.inputs, *self.sensors):
             self.param_list += [replace(q, name=f"{e.name}.{q.name}") for q in e.params]
@@ -103,41 +107,60 @@ class JointModel:
             return self.host.predict_t(xt, ut, self.dt_s)
         return self.host.predict(xt.T, ut.T, self.dt_s).T
 
-    def trajectories(self, tl, starts: np.ndarray, length: int, x0: np.ndarray, u_eff=None) -> np.ndarray:
-        """Predicted measurements (c, w, L + 1, 3) from initial states x0 (c, w, 6) at rows ``starts`` (w,).
+    def lookback(self) -> int:
+        """Rows before each window the rollouts start at: what the sensor effects read (see the effect doc)."""
+        m = 0
+        for e in self.sensors:
+            if e.lookback is not None:
+                m = max(m, int(e.lookback({q.name: self.prm[f"{e.name}.{q.name}"] for q in e.params})))
+        return m
 
+    def trajectories(self, tl, starts: np.ndarray, length: int, x0: np.ndarray, u_eff=None) -> np.ndarray:
+        """Predicted measurements (c, w, L + 1, 3) at rows ``starts`` (w,) .. + L.
+
+        The rollouts start :meth:`lookback` (m) rows earlier, from initial states x0 (c, w, 6) at rows
+        ``starts - m`` (at most back to the segment's first row, whose command the earlier rows repeat);
         ``c`` stacks variants of the same windows (the velocity perturbations);
         commands past a window's usable run are replaced by zeros (callers mask those rows).
         """
         if u_eff is None:
             u_eff = tl.effective_commands(self.inputs, self.prm)
         c, w = x0.shape[:2]
-        rows = starts[:, None] + np.arange(length)[None, :]
-        U = np.nan_to_num(u_eff[np.minimum(rows, tl.n - 1)])  # (w, L, 3)
-        Ut = np.ascontiguousarray(np.tile(U.transpose(1, 2, 0), (1, 1, c)))  # (L, 3, c w)
+        m = self.lookback()
+        rows = np.minimum(starts[:, None] + np.arange(-m, length)[None, :], tl.n - 1)
+        if m:
+            rows = np.maximum(rows, tl.segment_start[starts][:, None])
+
+        def batch(r):  # (w, m + L) rows -> (m + L, 3, c w) commands
+            return np.ascontiguousarray(np.tile(np.nan_to_num(u_eff[r]).transpose(1, 2, 0), (1, 1, c)))
+
+        Ut = batch(rows)
+        Up = batch(tl.previous[rows]) if self._held else None
         xt = np.ascontiguousarray(x0.reshape(c * w, 6).T)
-        out = np.empty((length + 1, 3, c * w))
+        out = np.empty((m + length + 1, 3, c * w))
         out[0] = xt[:3]
-        for j in range(length):
-            xt = self._step(xt, Ut[j])
+        for j in range(m + length):
+            xt = self.host.predict_t(xt, Ut[j], self.dt_s, Up[j]) if self._held else self._step(xt, Ut[j])
             out[j + 1] = xt[:3]
-        traj = out.transpose(2, 0, 1).reshape(c, w, length + 1, 3)
+        traj = out.transpose(2, 0, 1).reshape(c, w, m + length + 1, 3)
         for effect in self.sensors:
             prm = {q.name: self.prm[f"{effect.name}.{q.name}"] for q in effect.params}
             traj = np.stack([effect.transform(t, tl.dt_s, prm) for t in traj])
-        return traj
+        return traj[:, :, m:]
 
     def projected(self, tl, starts, length, fit_rows: np.ndarray, x0=None, passes: int = 1, u_eff=None):
         """Rollouts with each window's initial state solved on ``fit_rows``.
 
         Args:
             fit_rows: (w, L + 1) bool, rows whose measurements determine the initial state.
-            x0: (w, 6) starting guesses (default ``tl.x_lin`` at the starts).
+            x0: (w, 6) starting guesses (default ``tl.x_lin`` where the rollouts start, see :meth:`trajectories`).
         Returns:
             (pred (w, L + 1, 3) predicted measurements after the correction,
              S (w, L + 1, 3, 6) sensitivity to the initial state, G (w, 6, 6) its normal matrix).
         """
-        x0 = tl.x_lin[starts].copy() if x0 is None else x0.copy()
+        if x0 is None:
+            x0 = tl.x_lin[np.maximum(starts - self.lookback(), tl.segment_start[starts])]
+        x0 = x0.copy()
         target = targets(tl, starts, length)
         use = fit_rows & np.all(np.isfinite(target), axis=2)
         tz = np.where(use[..., None], target, 0.0)
@@ -150,11 +173,13 @@ class JointModel:
             q0 = np.where(np.isfinite(q[0]), q[0], 0.0)
             S = np.where(np.isfinite(S), S, 0.0)
             r = np.where(use[..., None], q0 - tz, 0.0)
-            Su = S * use[..., None, None]
-            G = np.einsum("wkai,wkaj->wij", Su, Su) + RIDGE
-            d = np.linalg.solve(G, -np.einsum("wkai,wka->wi", Su, r)[..., None])[..., 0]
+            w, rows = use.shape
+            Su = (S * use[..., None, None]).reshape(w, rows * 3, 6)  # batched matmul: BLAS, not einsum loops
+            SuT = Su.transpose(0, 2, 1)
+            G = SuT @ Su + RIDGE
+            d = np.linalg.solve(G, -(SuT @ r.reshape(w, rows * 3, 1)))[..., 0]
             x0 = x0 + d
-        pred = q0 + np.einsum("wkai,wi->wka", S, d)
+        pred = q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape)
         return pred, S, G
 
     # ------------------------------------------------------------ evaluation

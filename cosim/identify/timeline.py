@@ -11,6 +11,7 @@ state at row i and steps the commands u_i..u_{i+L-1}; it is usable up to
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -59,6 +60,19 @@ class Timeline:
     @property
     def n(self) -> int:
         return len(self.p)
+
+    @cached_property
+    def segment_start(self) -> np.ndarray:
+        """(n,) the first row of each row's command segment (the row itself outside segments)."""
+        first = np.arange(self.n)
+        for a, b in self.segments:
+            first[a:b] = a
+        return first
+
+    @cached_property
+    def previous(self) -> np.ndarray:
+        """(n,) each row's previous row within its command segment (itself at a segment's start)."""
+        return np.maximum(np.arange(self.n) - 1, self.segment_start)
 
     @property
     def measured(self) -> np.ndarray:

@@ -8,6 +8,8 @@ what the camera reports. ``dt_s`` is the control period [s].
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.signal import lfilter
 
@@ -83,6 +85,7 @@ SENSOR_LATENCY = Effect(
         "swimmer was at t_i - delay dt; delay [control periods] is fitted as a fraction or a number of "
         "steps, by linear interpolation along the predicted path.",
     starts=({"delay": 0.5}, {"delay": 1.5}, {"delay": 4.0}),
+    lookback=lambda prm: math.ceil(prm["delay"] - 1e-9),
 )
 
 TRANSFORM_EFFECTS = (ACTUATION_LAG, HEADING_LAG, SENSOR_LATENCY)

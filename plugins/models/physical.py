@@ -21,6 +21,16 @@ dt phi1(lambda dt) a_other, p' = p + dt v'. So v' = (p' - p) / dt, the paper's
 backward-difference velocity, and a state built from data is consistent with
 the model's own.
 
+``hold="exact"`` (what ``cosim diagnose`` fits with) makes that recursion of
+step-mean velocities exact for a command held over each step: a step-mean
+velocity still carries half of the previous step's force, so the command's
+force enters with weight phi2(z)/phi1(z) (phi2(z) = (1 - phi1(z))/z, about a
+half) and the previous command's with the rest, and the angle of attack, the
+lift and extra terms are taken at the step's predicted mean velocity, not the
+last step's. Without it the model leads a continuous-time swimmer by about half
+a step wherever the command turns, which a diagnosis reads as a camera
+latency that is not there. The default, ``"paper"``, is the scheme above.
+
 Fit: (1) the six base parameters by linear instrumental-variable least
 squares on the one-step velocity change, and a first-order response fit as a
 fallback start (the better of the two by the stage 2 objective); (2) all parameters (extra terms
@@ -114,9 +124,12 @@ class PhysicalModel(Model):
     version = 1
 
     def __init__(self, mass_mg=12.4, pb_mm=(70.0, 70.0, 70.0), horizon=20, max_windows=3000,
-                 max_nfev=25, vp_passes=2, substeps=1, seed=0, terms=()):
+                 max_nfev=25, vp_passes=2, substeps=1, seed=0, terms=(), hold="paper"):
+        if hold not in ("paper", "exact"):
+            raise ValueError(f"physical model: hold must be 'paper' or 'exact', not {hold!r}")
         super().__init__(mass_mg=mass_mg, pb_mm=list(pb_mm), horizon=horizon, max_windows=max_windows,
-                         max_nfev=max_nfev, vp_passes=vp_passes, substeps=substeps, seed=seed)
+                         max_nfev=max_nfev, vp_passes=vp_passes, substeps=substeps, seed=seed, hold=hold)
+        self._exact = hold == "exact"
         self.terms: list[ForceTerm] = list(terms)
         for term in self.terms:
             if getattr(term, "kind", "force") != "force":
@@ -164,7 +177,7 @@ class PhysicalModel(Model):
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
         n, h = self.options["substeps"], dt_s / self.options["substeps"]
-        if x.ndim == 1 and not self.terms:
+        if x.ndim == 1 and not self.terms and not self._exact:
             xs, us = x.tolist(), u.tolist()
             for _ in range(n):
                 xs = _step_scalar(xs, us, h, self._theta, self._scale, self._pb)
@@ -175,24 +188,37 @@ class PhysicalModel(Model):
             xt = self._step_t(xt, ut, h, self._theta)
         return xt.T[0] if single else xt.T
 
-    def predict_t(self, xt: np.ndarray, ut: np.ndarray, dt_s: float) -> np.ndarray:
-        """:meth:`predict` on component-major batches, xt (6, n), ut (3, n) -> (6, n) (fast batch rollouts)."""
+    def predict_t(self, xt: np.ndarray, ut: np.ndarray, dt_s: float, ut_prev: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`predict` on component-major batches, xt (6, n), ut (3, n) -> (6, n) (fast batch rollouts).
+
+        ``ut_prev`` (3, n): the previous step's commands, which ``hold="exact"`` uses (default: ``ut``).
+        """
         n, h = self.options["substeps"], dt_s / self.options["substeps"]
-        for _ in range(n):
-            xt = self._step_t(xt, ut, h, self._theta)
+        for i in range(n):
+            xt = self._step_t(xt, ut, h, self._theta, ut_prev if i == 0 else None)
         return xt
 
-    def _step_t(self, x, u, h, th):
-        """One step of h [s] on component-major arrays: x (6, n), u (3, n) -> (6, n)."""
+    def _step_t(self, x, u, h, th, u_prev=None):
+        """One step of h [s] on component-major arrays: x (6, n), u and u_prev (3, n) -> (6, n)."""
         p, v = x[:3], x[3:]
-        sin_a, lift, cent = _geometry_t(p, v, u, self._pb)
         s = self._scale
-        a = th[0] * u + th[3] * lift + th[5] * cent
+        f, v_geo = u, v  # the command whose force acts, the velocity the geometry is taken at
+        if self._exact:  # see the module doc
+            z1 = s * h * max(float(th[2]), 0.0)
+            f1 = float(phi1(z1))
+            if u_prev is not None:
+                w = (1.0 - f1) / (z1 * f1) if z1 > 1e-6 else 0.5 + z1 / 12.0
+                f = w * u + (1.0 - w) * u_prev
+            drive = th[0] * f
+            drive[2] += th[4]
+            v_geo = math.exp(-z1) * v + (s * h * f1) * drive  # the step's mean velocity, drag by Cd1 alone
+        sin_a, lift, cent = _geometry_t(p, v_geo, u, self._pb)
+        a = th[0] * f + th[3] * lift + th[5] * cent
         a[2] += th[4]
         if self.terms:
             named = dict(zip((q.name for q in self.all_params()), th))
             for term in self.terms:
-                a += term.force(p.T, v.T, u.T, _term_params(term, named)).T
+                a += term.force(p.T, v_geo.T, f.T, _term_params(term, named)).T
         z = (s * h) * (th[1] * sin_a + th[2])
         out = np.empty_like(x)
         out[3:] = np.exp(-z) * v + (s * h) * phi1(z) * a

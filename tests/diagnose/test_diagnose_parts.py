@@ -129,3 +129,27 @@ def test_time_block_split_keeps_halves_apart():
     tr, te = np.isfinite(train[0].p_mm[:, 0]), np.isfinite(test[0].p_mm[:, 0])
     assert not np.any(tr & te) and np.all(tr | te)
     assert te.mean() == pytest.approx(1 / 3, abs=0.05) and info["block_s"] == BLOCK_S
+
+
+def test_a_latency_reads_the_path_before_each_window(synthetic):
+    """Positions seen 2.5 steps late: with the true delay the rollouts start early enough that the model
+    reproduces them (no extrapolation before a window's first row)."""
+    from cosim.identify.effect import known_effects
+
+    ds, plant = synthetic
+    tl = Timeline.from_dataset(ds)
+    a, b = max(tl.segments, key=lambda s: s[1] - s[0])
+    true = plant.rollout(tl.x_lin[a], tl.u[a:b], tl.dt_s)[:, :3]  # (b - a + 1, 3), exact, no noise
+    seen = known_effects()["sensor_latency"].transform(true[None], tl.dt_s, {"delay": 2.5})[0]
+    tl.p = np.full_like(tl.p, np.nan)
+    tl.p[a + 3:b] = seen[3:b - a]
+    tl.x_lin[a + 1:b + 1] = np.column_stack([true[1:], np.diff(true, axis=0) / tl.dt_s])  # guesses near the path
+    jm = JointModel(plant, [known_effects()["sensor_latency"]], base_params={"sensor_latency.delay": 2.5})
+    assert jm.lookback() == 3
+    starts = np.arange(a + 3, b - 60, 7)
+    ev = jm.evaluate(tl, starts, 10, {"1.0": 50})["1.0"]
+    err = np.linalg.norm(ev["err"][ev["valid"]], axis=1)
+    assert ev["valid"].sum() > 20 and err.max() < 1e-3
+    jm.lookback = lambda: 0  # extrapolating the first step backwards instead
+    ev = jm.evaluate(tl, starts, 10, {"1.0": 50})["1.0"]
+    assert np.mean(np.linalg.norm(ev["err"][ev["valid"]], axis=1)) > 10 * max(err.mean(), 1e-4)

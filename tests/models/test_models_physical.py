@@ -101,3 +101,37 @@ def test_fast_single_step():
     per_call = (time.perf_counter() - t0) / 2000
     assert per_call < 200e-6  # budget 50 us; loose here because CI machines are shared
     assert math.isfinite(per_call)
+
+
+def _held_truth(lam_per_s, acc, dt_s):
+    """Exact positions (n + 1, 3) [mm] of v' = -lam v + a_i on [t_i, t_i+1) from rest at 0 (a (n, 3) mm/s^2)."""
+    e = math.exp(-lam_per_s * dt_s)
+    q = (1.0 - e) / lam_per_s
+    r = (dt_s - q) / lam_per_s
+    p, v, out = np.zeros(3), np.zeros(3), [np.zeros(3)]
+    for a in acc:
+        p, v = p + q * v + r * a, e * v + q * a
+        out.append(p)
+    return np.array(out)
+
+
+def test_exact_hold_steps_step_mean_velocities_exactly():
+    """Linear drag, a command held over each step: hold="exact" reproduces the continuous-time positions;
+    the paper's scheme leads them by about half a step wherever the command changes."""
+    prm = {"k": 0.6, "Cd1": 0.15}  # lambda = 1000 Cd1 / m = 12.1 /s
+    lam, dt = 1000.0 * 0.15 / 12.4, 0.02
+    U = np.random.default_rng(3).normal(0.0, 8.0, (300, 3))
+    truth = _held_truth(lam, 1000.0 * 0.6 / 12.4 * U, dt)
+    errors = {}
+    for hold in ("paper", "exact"):
+        model = PhysicalModel.from_params(prm, dt_s=dt, hold=hold)
+        xt = np.concatenate([truth[1], (truth[1] - truth[0]) / dt])[:, None]  # a state built from data
+        path = [truth[1]]
+        for i in range(1, len(U)):
+            xt = model.predict_t(xt, U[i][:, None], dt, U[i - 1][:, None])
+            path.append(xt[:3, 0])
+        errors[hold] = np.abs(np.array(path) - truth[1:]).max()
+    assert errors["exact"] < 1e-9
+    assert errors["paper"] > 1e-3
+    with pytest.raises(ValueError, match="hold"):
+        PhysicalModel(hold="midpoint")
