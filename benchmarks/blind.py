@@ -27,7 +27,9 @@ it finishes; at the end one JSON object is printed:
     .venv/bin/python benchmarks/blind.py --write-case outside:rotating_flow [--seed 3] --out DIR
 
 ``--summarise OUT/cases.jsonl`` prints the figures of the cases recorded so
-far (a bench stopped midway keeps every finished case).
+far (a bench stopped midway keeps every finished case); ``--resume`` goes on
+with such a bench: the finished cases of ``OUT/cases.jsonl`` are kept and
+only the others are diagnosed (same ``--cases`` and ``--seed``).
 ``--write-case GROUP[:EFFECT]`` only simulates one case into ``DIR/logs`` (and
 its true form into ``DIR/true_form.py``, its truth into ``DIR/case.json``):
 logs to try ``cosim diagnose`` on by hand.
@@ -150,6 +152,31 @@ def summarise(records: list[dict]) -> dict:
     }
 
 
+def _finished(lines: Path, cases: list) -> list[dict]:
+    """The error-free records of an earlier run's ``cases.jsonl`` that match this draw."""
+    if not lines.is_file():
+        return []
+    drawn = {c.index: c for c in cases}
+    kept = []
+    for n, line in enumerate(lines.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            print(f"{lines}:{n}: not a JSON line (a cut write?): diagnosed again", file=sys.stderr)
+            continue
+        case = drawn.get(rec.get("index"))
+        same = case is not None and (case.group, case.effect, case.seed) == (
+            rec.get("group"), rec.get("effect"), rec.get("seed", case.seed))
+        if not same:
+            raise SystemExit(f"--resume: {lines}:{n} is case {rec.get('index')} {rec.get('group')} "
+                             f"{rec.get('effect')}, not in this draw (other --cases/--seed?)")
+        if "error" not in rec:
+            kept.append(rec)
+    return kept
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=60, help="number of cases (default 60)")
@@ -158,6 +185,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(ROOT / "runs" / "blind"), help="folder for logs and cases.jsonl")
     ap.add_argument("--only", choices=("library", "none", "outside"),
                     help="run only the drawn cases of this group (the same cases as in the full draw)")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the finished cases of OUT/cases.jsonl and diagnose only the others")
     ap.add_argument("--summarise", metavar="CASES.jsonl|OUT",
                     help="only print the figures of a (possibly unfinished) run's cases.jsonl")
     ap.add_argument("--write-case", metavar="GROUP[:EFFECT]",
@@ -190,11 +219,15 @@ def main(argv=None) -> int:
         return 0
     cases = [c for c in blind_sim.draw_cases(args.cases, args.seed) if args.only in (None, c.group)]
     lines = out / "cases.jsonl"
-    lines.write_text("")
-    records = []
+    records = _finished(lines, cases) if args.resume else []
+    lines.write_text("".join(json.dumps(r) + "\n" for r in records))
+    kept = {r["index"] for r in records}
+    todo = [c for c in cases if c.index not in kept]
+    if records:
+        print(f"resuming: {len(records)} finished cases kept, {len(todo)} to go", file=sys.stderr, flush=True)
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(_worker, (c, str(out))) for c in cases]
-        for done, fut in enumerate(as_completed(futures), 1):
+        futures = [pool.submit(_worker, (c, str(out))) for c in todo]
+        for done, fut in enumerate(as_completed(futures), len(records) + 1):
             rec = fut.result()
             records.append(rec)
             with open(lines, "a") as fh:

@@ -107,6 +107,11 @@ def alive_key(run_id: str, component: str = "*") -> str:
     return f"{ROOT}/{run_id}/alive/{component}"
 
 
+def scheduler_alive_key(run_id: str) -> str:
+    """The scheduler's liveliness token: its nodes stop when it goes."""
+    return f"{ROOT}/{run_id}/ctl/scheduler-alive"
+
+
 def ctl_key(run_id: str, component: str, what: str) -> str:
     return f"{ROOT}/{run_id}/ctl/{component}/{what}"
 

@@ -22,6 +22,9 @@ def add_commands(sub) -> None:
     p.add_argument("--node-cpus", default="auto", metavar="auto|none|LIST",
                    help="with --processes: CPUs for the nodes (auto: all on one CPU, the fastest "
                         "placement for a lockstep chain; none: the OS places them; or e.g. 1 or 0,2-3)")
+    p.add_argument("--realtime", nargs="?", type=float, const=1.0, default=None, metavar="FACTOR",
+                   help="pace the ticks on the wall clock (FACTOR times real time, default 1); late ticks "
+                        "are skipped and counted in summary.json's 'realtime'")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_run)
 
@@ -63,15 +66,26 @@ def cmd_run(args) -> int:
     from cosim.scenario import load_scenario
 
     out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
-    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet, args.node_cpus))
+    if args.realtime is not None and not args.realtime > 0:
+        raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
+    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet, args.node_cpus,
+                             args.realtime))
     if "sweep" not in summary:
         err = summary["tracking_error_mm"]
         if err:
             print(f"tracking error: {err['mean']:.2f} ± {err['std']:.2f} mm (max {err['max']:.2f} mm)")
         print(f"{summary['steps']} steps, {summary['sim_time_s']:.1f} s simulated in "
-              f"{summary['wall_time_s']:.1f} s ({summary['realtime_factor']:.0f}x real time)")
+              f"{summary['wall_time_s']:.1f} s ({summary['realtime_factor'] or 0:.0f}x real time)")
+        rt = summary.get("realtime")
+        if rt:
+            print(f"real-time pacing x{rt['factor']:g}: {rt['missed']} of {rt['ticks'] + rt['missed']} ticks "
+                  f"missed, lateness p99 {rt['lateness_ms']['p99']} ms (max {rt['lateness_ms']['max']} ms)")
     print(f"recording: {out / 'recording.rrd' if 'sweep' not in summary else out / 'runs'}")
     print(f"summary:   {out / 'summary.json'}")
+    if summary.get("status") == "interrupted":
+        print(f"cosim run: {summary.get('error') or 'stopped'}; everything recorded until then is kept",
+              file=sys.stderr)
+        return 130
     failed = [row for row in summary.get("sweep", []) if row["status"] != "ok"]
     if failed:
         print(f"cosim run: {len(failed)} of {len(summary['sweep'])} sweep runs did not finish: "

@@ -105,27 +105,48 @@ def read_logs(paths, outlier_mm: float = OUTLIER_MM) -> list[Log]:
 
 
 def write_log(path: str | Path, t_ms, omega_rad_s, p_m) -> None:
-    """Write a raw log.
+    """Write a raw log in one go (see :class:`LogWriter` for the row format)."""
+    with LogWriter(path) as log:
+        log.append(t_ms, omega_rad_s, p_m)
 
-    Args:
-        t_ms: (n,) time [ms]; written as integers when all are integral.
-        omega_rad_s: (n, 3) command [rad/s].
-        p_m: (n, 3) measured position [m]; NaN rows/fields are written empty.
 
-    Floats use ``%.9g``; the output is deterministic for given inputs.
+class LogWriter:
+    """A raw log written as it comes: the header at once, then rows appended and flushed.
+
+    :meth:`append` takes ``t_ms`` (n,) [ms] (written as integers when all of
+    a batch are integral), ``omega_rad_s`` (n, 3) [rad/s] and ``p_m`` (n, 3)
+    [m] (NaN fields written empty). Floats use ``%.9g`` (no ``-0``); the
+    output is deterministic for given rows, however they are batched as long
+    as every batch's times are integral (or none's).
     """
-    t = np.asarray(t_ms, dtype=float).reshape(-1)
-    w = np.asarray(omega_rad_s, dtype=float).reshape(len(t), 3)
-    p = np.asarray(p_m, dtype=float).reshape(len(t), 3)
-    t_int = bool(np.all(np.isfinite(t))) and bool(np.all(t == np.round(t))) and np.abs(t).max(initial=0) < 2**53
-    tfmt = "%d" if t_int else "%.12g"
-    row = tfmt + ",%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n"
-    table = np.column_stack([t, w, p])
-    body = (row * len(t)) % tuple(table.ravel().tolist())
-    body = body.replace("nan", "")
-    with open(path, "w", newline="\n") as fh:
-        fh.write(HEADER + "\n")
-        fh.write(body)
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self._fh = open(self.path, "w", newline="\n")
+        self._fh.write(HEADER + "\n")
+        self._fh.flush()
+
+    def append(self, t_ms, omega_rad_s, p_m) -> None:
+        t = np.asarray(t_ms, dtype=float).reshape(-1)
+        if not len(t):
+            return
+        w = np.asarray(omega_rad_s, dtype=float).reshape(len(t), 3)
+        p = np.asarray(p_m, dtype=float).reshape(len(t), 3)
+        t_int = bool(np.all(np.isfinite(t))) and bool(np.all(t == np.round(t))) and np.abs(t).max() < 2**53
+        row = ("%d" if t_int else "%.12g") + ",%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n"
+        table = np.column_stack([t, w, p]) + 0.0  # -0.0 + 0.0 is +0.0
+        body = (row * len(t)) % tuple(table.ravel().tolist())
+        self._fh.write(body.replace("nan", ""))
+        self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self) -> "LogWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 # ---------------------------------------------------------------- parsing

@@ -14,6 +14,10 @@ callbacks (one lock around them; the main thread only waits):
 * commands on ``cosim/{run}/ctl/{name}/cmd``: ``init`` (publish the initial
   outputs), ``flush`` (report the steps held back, even none), ``stop``.
 
+The node also stops (closing its component, so a coil driver makes its
+outputs safe) when the scheduler's liveliness token goes (its process ended
+or was killed), on SIGTERM and on Ctrl-C.
+
 Replies go to ``cosim/{run}/ctl/{name}/reply``: a JSON attachment and the
 outputs as the payload (see :func:`cosim.bus.encode_reply`). Steps are
 reported ``REPLY_BATCH`` at a time, ``{"name", "ticks": [...], "ok": true}``
@@ -24,6 +28,7 @@ set-up phases and failures as ``{"name", "tick", "phase", "ok"[, "error",
 
 from __future__ import annotations
 
+import signal
 import sys
 import threading
 import time
@@ -176,6 +181,22 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     subs.append(session.declare_subscriber(bus.tick_key(run_id), node.on_tick))
     subs.append(session.declare_subscriber(bus.ctl_key(run_id, name, "cmd"), node.on_cmd))
     token = session.liveliness().declare_token(bus.alive_key(run_id, name))
+    gone = []  # why the node stops on its own
+
+    def on_scheduler(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.DELETE and not node.stopped.is_set():
+            gone.append("the scheduler's process ended")
+            node.stopped.set()
+
+    subs.append(session.liveliness().declare_subscriber(bus.scheduler_alive_key(run_id), on_scheduler))
+    if threading.current_thread() is threading.main_thread():
+        def on_term(signum, frame):
+            if not node.stopped.is_set():
+                gone.append(signal.Signals(signum).name)
+            node.stopped.set()
+
+        signal.signal(signal.SIGTERM, on_term)
+        signal.signal(signal.SIGINT, on_term)
     reply(-1, "ready")
     status = 0
     try:
@@ -185,6 +206,9 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
                       file=sys.stderr)
                 status = 1
                 break
+        if gone:
+            print(f"cosim node {name}: stopping ({gone[0]}); component closed", file=sys.stderr)
+            status = 1
     finally:
         node.stopped.set()
         token.undeclare()

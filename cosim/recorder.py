@@ -1,27 +1,38 @@
-"""Observers that record a run, and the files they write.
+"""Observers that record a run, and the files they write as it goes.
 
 :class:`TraceRecorder` keeps every port's value at every tick in memory
-(preallocated arrays) and, when the run finishes or fails, writes:
+(preallocated arrays, for the run's figures) and writes them out as the run
+goes, in batches: the log and the trace at least every ``FLUSH_EVERY_S`` of
+wall time and of simulated time, the recording every ``FLUSH_EVERY_S`` of
+wall time:
 
-* ``trace.npz``: the full trace of every port (``t_s`` plus one array per
-  ``component.port``, shape (ticks, *port shape)), SI units;
 * ``log.csv``: the raw log in the paper's format (see :mod:`cosim.data`);
+* ``trace.part``: every port's rows so far (float64, the layout in
+  ``trace.part.json``), turned into ``trace.npz`` when the run ends (the full
+  trace: ``t_s`` plus one array per ``component.port``, shape
+  (ticks, *port shape), SI units) and then removed;
 * ``recording.rrd``: the rerun recording (see :mod:`cosim.rerun_log`).
 
-Writing happens on failure too, so a crashed run leaves everything it
-recorded readable.
+So a run stopped, failed or killed keeps what it recorded: a killed
+process loses at most the last batch; :func:`load_trace` reads a
+``trace.part`` left behind.
 """
 
 from __future__ import annotations
 
+import json
+import time
 from pathlib import Path
 
 import numpy as np
 
-from cosim.data import write_log
+from cosim.data import LogWriter
 from cosim.paths import distance_to_path
 from cosim.scenario import Scenario
 from cosim.wiring import Wiring
+
+#: longest stretch of wall time, and of simulated time [s], not yet written out
+FLUSH_EVERY_S = 1.0
 
 
 class TraceRecorder:
@@ -30,10 +41,29 @@ class TraceRecorder:
         n = scenario.n_steps
         self.t_s = np.arange(n) * scenario.dt_s
         self.arrays = {(c, p.name): np.full((n, *p.shape), np.nan) for c in wiring.order for p in wiring.outputs[c]}
-        self.ticks = 0
+        self.ticks = 0  # ticks recorded
+        self.written = 0  # ticks written to the log and the trace
+        self.drawn = 0  # ticks written to the recording
         self.closed = False
         self.files: dict[str, Path] = {}
-        self.tracking_error_m: np.ndarray | None = None  # (ticks,) distance of truth to path [m]
+        self.tracking_error_m = np.full(n, np.nan)  # (n,) distance of truth to path [m], as far as drawn
+        self._batch_ticks = max(int(round(FLUSH_EVERY_S / scenario.dt_s)), 1)
+        self._last_write = time.monotonic()
+        self._log = self._part = self._rrd = None
+
+    def open(self) -> None:
+        """Create the output files (headers only); called before the first tick."""
+        from cosim import rerun_log
+
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        if self.signal("omega") is not None and self.signal("measured") is not None:
+            self._log = LogWriter(self.out_dir / "log.csv")
+            self.files["log"] = self._log.path
+        layout = [[f"{c}.{p}", list(a.shape[1:])] for (c, p), a in self.arrays.items()]
+        (self.out_dir / "trace.part.json").write_text(json.dumps({"dtype": "<f8", "columns": [["t_s", []], *layout]}))
+        self._part = open(self.out_dir / "trace.part", "wb")
+        self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self.scenario.name, self.path)
+        self.files["recording"] = self.out_dir / "recording.rrd"
 
     def on_tick(self, tick: int, t: float, values) -> None:
         if self.closed:
@@ -41,33 +71,91 @@ class TraceRecorder:
         for key, value in values.items():
             self.arrays[key][tick] = value
         self.ticks = tick + 1
+        if time.monotonic() - self._last_write >= FLUSH_EVERY_S:
+            self.write_out(recording=True)
+        elif self.ticks - self.written >= self._batch_ticks:
+            self.write_out(recording=False)
 
-    def signal(self, role: str) -> np.ndarray | None:
-        """The recorded array of a role of ``scenario.record`` (e.g. 'truth'), cut to the ticks run."""
+    def signal(self, role: str, start: int = 0, stop: int | None = None) -> np.ndarray | None:
+        """The recorded array of a role of ``scenario.record`` (e.g. 'truth'), rows ``start:stop``
+        (default: up to the ticks run)."""
         ref = getattr(self.scenario.record, role)
         if not ref:
             return None
         comp, _, port = ref.partition(".")
         arr = self.arrays.get((comp, port))
-        return None if arr is None else arr[: self.ticks]
+        return None if arr is None else arr[start: self.ticks if stop is None else stop]
 
-    def finish(self, error: str | None) -> None:
+    def write_out(self, recording: bool = True) -> None:
+        """Append the ticks recorded since the last call to the log and the trace
+        (and, with ``recording``, to the rerun recording)."""
+        if self._part is None:
+            return
+        start, stop = self.written, self.ticks
+        if stop > start:
+            t_s = self.t_s[start:stop]
+            if self._log is not None:
+                self._log.append(np.round(t_s * 1e3, 6), self.signal("omega", start, stop),
+                                 self.signal("measured", start, stop))
+            rows = [t_s[:, None], *(a[start:stop].reshape(stop - start, -1) for a in self.arrays.values())]
+            self._part.write(np.ascontiguousarray(np.hstack(rows), dtype="<f8").tobytes())
+            self._part.flush()
+            self.written = stop
+        if recording:
+            self._last_write = time.monotonic()
+            start = self.drawn
+            if stop > start:
+                truth = self.signal("truth", start, stop)
+                error = None
+                if truth is not None and self.path is not None:
+                    error = self.tracking_error_m[start:stop] = distance_to_path(self.path, truth, self.t_s[start:stop])
+                self._rrd.append(self, start, stop, error)
+                self.drawn = stop
+
+    def finish(self, error: str | None, event: str | None = None) -> None:
+        """Write the rest and close the files; ``event`` (a fault or a stop) goes into the recording."""
         if self.closed:
             return
         self.closed = True
-        from cosim import rerun_log
-
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        if self._part is None:
+            self.open()
+        self.write_out()
+        if event:
+            self._rrd.event(self.ticks * self.scenario.dt_s, event, "ERROR" if error else "WARN")
+        self._rrd.close()
+        if self._log is not None:
+            self._log.close()
+        self._part.close()
         n = self.ticks
         trace = {f"{c}.{p}": a[:n] for (c, p), a in self.arrays.items()}
         np.savez_compressed(self.out_dir / "trace.npz", t_s=self.t_s[:n], **trace)
         self.files["trace"] = self.out_dir / "trace.npz"
-        omega, measured = self.signal("omega"), self.signal("measured")
-        if omega is not None and measured is not None:
-            write_log(self.out_dir / "log.csv", np.round(self.t_s[:n] * 1e3, 6), omega, measured)
-            self.files["log"] = self.out_dir / "log.csv"
-        truth = self.signal("truth")
-        if truth is not None and self.path is not None:
-            self.tracking_error_m = distance_to_path(self.path, truth, self.t_s[:n])
-        rerun_log.write_recording(self, self.out_dir / "recording.rrd")
-        self.files["recording"] = self.out_dir / "recording.rrd"
+        (self.out_dir / "trace.part").unlink()
+        (self.out_dir / "trace.part.json").unlink()
+        if self.path is None or self.signal("truth") is None:
+            self.tracking_error_m = None
+        else:
+            self.tracking_error_m = self.tracking_error_m[:n]
+
+
+def load_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
+    """A run's trace: ``trace.npz``, or the ``trace.part`` of a run that was killed.
+
+    Returns ``{"t_s": (n,), "component.port": (n, *shape), ...}``.
+    """
+    run_dir = Path(run_dir)
+    if (run_dir / "trace.npz").is_file():
+        with np.load(run_dir / "trace.npz") as data:
+            return {k: data[k] for k in data.files}
+    part, layout = run_dir / "trace.part", run_dir / "trace.part.json"
+    if not (part.is_file() and layout.is_file()):
+        from cosim.errors import UserError
+
+        raise UserError(f"run {run_dir}: no trace.npz (nor a trace.part of a run that was cut short)")
+    columns = json.loads(layout.read_text())["columns"]
+    widths = [int(np.prod(shape)) for _, shape in columns]
+    flat = np.frombuffer(part.read_bytes(), dtype="<f8")
+    rows = len(flat) // sum(widths)  # a row cut by the kill is dropped
+    table = flat[: rows * sum(widths)].reshape(rows, sum(widths))
+    edges = np.cumsum([0, *widths])
+    return {name: table[:, a:b].reshape(rows, *shape) for (name, shape), a, b in zip(columns, edges, edges[1:])}

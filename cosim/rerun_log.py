@@ -1,8 +1,11 @@
-"""The run's rerun recording: one function per thing logged, the blueprint in one place.
+"""The run's rerun recording, written as the run goes: one function per thing logged, the blueprint in one place.
 
-Everything is sent in columns (``send_columns``) on the ``sim_time``
-timeline, one call per entity, so a 290 s run costs a few calls, not one
-per tick. Positions are in metres (the 3D view shows the tank in m).
+:class:`RecordingWriter` opens the ``.rrd`` file at the start of a run and
+appends each batch of ticks the recorder hands it (about one a second), so
+a run that is stopped or killed keeps what was recorded. Everything is sent
+in columns (``send_columns``) on the ``sim_time`` timeline, one call per
+entity and batch, not one per tick. Positions are in metres (the 3D view
+shows the tank in m). Faults and stops are logged as text under ``events``.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ def blueprint() -> rrb.Blueprint:
                 rrb.TimeSeriesView(origin="plots/tracking_error_mm", name="tracking error [mm]"),
                 rrb.TimeSeriesView(origin="plots/omega", name="omega [rad/s]"),
                 rrb.TimeSeriesView(origin="plots/coil_current", name="coil current amplitude [A]"),
+                rrb.TextLogView(origin="events", name="faults and stops"),
+                row_shares=[3, 3, 3, 1],
             ),
             column_shares=[3, 2],
         ),
@@ -38,37 +43,27 @@ def _time(t_s: np.ndarray) -> list:
     return [rr.TimeColumn("sim_time", duration=t_s)]
 
 
-def log_tank(rec: rr.RecordingStream) -> None:
-    rec.log("world/tank", rr.Boxes3D(half_sizes=[[TANK_HALF_M] * 3], colors=[[120, 160, 255, 60]]), static=True)
-
-
-def log_path(rec: rr.RecordingStream, path, t_s: np.ndarray) -> None:
-    if path is None:
+def log_path(rec: rr.RecordingStream, path, t_s: np.ndarray, ticks: np.ndarray, dt_s: float) -> None:
+    """A moving path at ``PATH_LOG_HZ``: at those of ``ticks`` (n,), times ``t_s`` (n,), on that grid."""
+    if path is None or not path.time_varying:
         return
-    if not path.time_varying:
-        rec.log("world/path", rr.LineStrips3D([path.points(0.0)], colors=[[255, 200, 0]]), static=True)
-        return
-    step = max(int(round(1.0 / (PATH_LOG_HZ * (t_s[1] - t_s[0])))), 1) if len(t_s) > 1 else 1
-    for t in t_s[::step]:
+    step = max(int(round(1.0 / (PATH_LOG_HZ * dt_s))), 1)
+    for t in t_s[ticks % step == 0]:
         rec.set_time("sim_time", duration=float(t))
         rec.log("world/path", rr.LineStrips3D([path.points(float(t))], colors=[[255, 200, 0]]))
 
 
-def log_points(rec, entity: str, t_s: np.ndarray, positions_m: np.ndarray, color, radius_m: float) -> None:
+def log_points(rec, entity: str, t_s: np.ndarray, positions_m: np.ndarray) -> None:
     keep = np.all(np.isfinite(positions_m), axis=1)
-    if not keep.any():
-        return
-    rec.log(entity, rr.Points3D.from_fields(colors=[color], radii=[radius_m]), static=True)
-    rec.send_columns(entity, indexes=_time(t_s[keep]), columns=rr.Points3D.columns(positions=positions_m[keep]))
+    if keep.any():
+        rec.send_columns(entity, indexes=_time(t_s[keep]), columns=rr.Points3D.columns(positions=positions_m[keep]))
 
 
-def log_arrows(rec, entity: str, t_s, origins_m, vectors_m, color) -> None:
+def log_arrows(rec, entity: str, t_s, origins_m, vectors_m) -> None:
     keep = np.all(np.isfinite(origins_m), axis=1) & np.all(np.isfinite(vectors_m), axis=1)
-    if not keep.any():
-        return
-    rec.log(entity, rr.Arrows3D.from_fields(colors=[color]), static=True)
-    rec.send_columns(entity, indexes=_time(t_s[keep]),
-                     columns=rr.Arrows3D.columns(origins=origins_m[keep], vectors=vectors_m[keep]))
+    if keep.any():
+        rec.send_columns(entity, indexes=_time(t_s[keep]),
+                         columns=rr.Arrows3D.columns(origins=origins_m[keep], vectors=vectors_m[keep]))
 
 
 def log_scalars(rec, entity: str, t_s: np.ndarray, values: np.ndarray) -> None:
@@ -77,37 +72,65 @@ def log_scalars(rec, entity: str, t_s: np.ndarray, values: np.ndarray) -> None:
         rec.send_columns(entity, indexes=_time(t_s[keep]), columns=rr.Scalars.columns(scalars=values[keep]))
 
 
-def write_recording(recorder, out_path: Path) -> None:
-    """Write ``out_path`` (.rrd) from a :class:`~cosim.recorder.TraceRecorder`."""
-    rec = rr.RecordingStream(application_id="cosim", recording_id=recorder.scenario.name)
-    rec.save(str(out_path), default_blueprint=blueprint())
-    n = recorder.ticks
-    t_s = recorder.t_s[:n]
-    log_tank(rec)
-    log_path(rec, recorder.path, t_s)
-    truth = recorder.signal("truth")
-    if truth is not None:
-        log_points(rec, "world/swimmer/true", t_s, truth, [40, 200, 80], 1.25e-3)
-        axis = recorder.signal("axis")
-        if axis is not None:
-            log_arrows(rec, "world/swimmer/axis", t_s, truth, axis * AXIS_LEN_M, [40, 200, 80])
-        field = recorder.signal("field")
-        if field is not None:
-            log_arrows(rec, "world/field", t_s, truth, field * FIELD_SCALE_M_PER_T, [230, 80, 230])
-    for role, color in (("measured", [255, 80, 60]), ("estimate", [60, 140, 255])):
-        sig = recorder.signal(role)
-        if sig is not None:
-            log_points(rec, f"world/swimmer/{'measured' if role == 'measured' else 'estimated'}",
-                       t_s, sig, color, 0.8e-3)
-    if recorder.tracking_error_m is not None:
-        log_scalars(rec, "plots/tracking_error_mm", t_s, recorder.tracking_error_m * 1e3)
-    omega = recorder.signal("omega")
-    if omega is not None:
-        for i, axis_name in enumerate("xyz"):
-            log_scalars(rec, f"plots/omega/{axis_name}", t_s, omega[:, i])
-    current = recorder.signal("coil_current")
-    if current is not None:
-        for i in range(current.shape[1]):
-            log_scalars(rec, f"plots/coil_current/{i + 1}", t_s, current[:, i])
-    rec.flush()
-    rec.disconnect()
+#: the run's points and arrows: (entity, recorded role, colour, point radius [m] or None for an arrow)
+STYLES = (
+    ("world/swimmer/true", "truth", [40, 200, 80], 1.25e-3),
+    ("world/swimmer/measured", "measured", [255, 80, 60], 0.8e-3),
+    ("world/swimmer/estimated", "estimate", [60, 140, 255], 0.8e-3),
+    ("world/swimmer/axis", "axis", [40, 200, 80], None),
+    ("world/field", "field", [230, 80, 230], None),
+)
+
+
+class RecordingWriter:
+    """The ``.rrd`` file of one run, appended batch by batch (see the module docstring)."""
+
+    def __init__(self, out_path: Path, recording_id: str, path=None):
+        self.path = path
+        self.rec = rec = rr.RecordingStream(application_id="cosim", recording_id=recording_id)
+        rec.save(str(out_path), default_blueprint=blueprint())
+        rec.log("world/tank", rr.Boxes3D(half_sizes=[[TANK_HALF_M] * 3], colors=[[120, 160, 255, 60]]),
+                static=True)
+        if path is not None and not path.time_varying:
+            rec.log("world/path", rr.LineStrips3D([path.points(0.0)], colors=[[255, 200, 0]]), static=True)
+        self._styled: set[str] = set()
+        rec.flush()
+
+    def append(self, recorder, start: int, stop: int, tracking_error_m: np.ndarray | None) -> None:
+        """Ticks ``start:stop`` of a :class:`~cosim.recorder.TraceRecorder`, with their
+        tracking error (stop - start,) [m] if there is a path."""
+        rec, t_s = self.rec, recorder.t_s[start:stop]
+        log_path(rec, self.path, t_s, np.arange(start, stop), recorder.scenario.dt_s)
+        sig = {role: recorder.signal(role, start, stop) for _, role, _, _ in STYLES}
+        for entity, role, color, radius in STYLES:
+            if sig[role] is None or (not radius and sig["truth"] is None):
+                continue
+            if entity not in self._styled:
+                self._styled.add(entity)
+                rec.log(entity, rr.Points3D.from_fields(colors=[color], radii=[radius]) if radius
+                        else rr.Arrows3D.from_fields(colors=[color]), static=True)
+            if radius:
+                log_points(rec, entity, t_s, sig[role])
+            else:
+                scale = AXIS_LEN_M if role == "axis" else FIELD_SCALE_M_PER_T
+                log_arrows(rec, entity, t_s, sig["truth"], sig[role] * scale)
+        if tracking_error_m is not None:
+            log_scalars(rec, "plots/tracking_error_mm", t_s, tracking_error_m * 1e3)
+        omega = recorder.signal("omega", start, stop)
+        if omega is not None:
+            for i, axis_name in enumerate("xyz"):
+                log_scalars(rec, f"plots/omega/{axis_name}", t_s, omega[:, i])
+        current = recorder.signal("coil_current", start, stop)
+        if current is not None:
+            for i in range(current.shape[1]):
+                log_scalars(rec, f"plots/coil_current/{i + 1}", t_s, current[:, i])
+        rec.flush(timeout_sec=0.0)
+
+    def event(self, t_s: float, text: str, level: str = "WARN") -> None:
+        """A fault or a stop, shown in the viewer's log panel at ``t_s``."""
+        self.rec.set_time("sim_time", duration=float(t_s))
+        self.rec.log("events", rr.TextLog(text, level=level))
+
+    def close(self) -> None:
+        self.rec.flush()
+        self.rec.disconnect()

@@ -1,18 +1,29 @@
 """Run a scenario (or its sweep) end to end and write its outputs.
 
 One run writes into its output folder: ``summary.json``, ``log.csv``,
-``trace.npz`` and ``recording.rrd`` (see :mod:`cosim.recorder`). A sweep
-writes one such folder per combination under ``runs/`` plus a
-``summary.json`` with a ``"sweep"`` list and a ``summary.md`` table.
+``trace.npz`` and ``recording.rrd`` (see :mod:`cosim.recorder`), the last
+three as the run goes. A sweep writes one such folder per combination under
+``runs/`` plus a ``summary.json`` with a ``"sweep"`` list and a
+``summary.md`` table.
+
+Ctrl-C (SIGINT) and SIGTERM stop a run after the tick under way: the
+components are closed (outputs made safe), everything recorded is kept and
+``summary.json`` says ``"status": "interrupted"``; a sweep runs no further
+combination. ``summary.json`` says ``"running"`` while the run goes, so a
+folder whose process was killed tells so.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import secrets
+import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,7 +35,7 @@ from cosim.placement import node_cpus
 from cosim.portcache import PortCache, PortStore
 from cosim.recorder import TraceRecorder
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
-from cosim.scheduler import WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler
+from cosim.scheduler import WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest
 from cosim.stepper import Stepper, setup_component
 from cosim.summary import METRICS, largest_below, run_figures, sweep_plot, sweep_table
 from cosim.wiring import build_wiring
@@ -44,23 +55,58 @@ class RunRequest:
     progress: bool = True
     #: with ``processes``: where the nodes run (see :mod:`cosim.placement`)
     node_cpus: str = "auto"
+    #: pace the ticks at this factor of real time (None: the scenario's ``realtime``)
+    realtime: float | None = None
+
+
+@contextlib.contextmanager
+def stop_on_signals():
+    """SIGINT and SIGTERM request a stop (yields the :class:`StopRequest`); a second signal
+    only says that the stop is under way. Outside the main thread, signals are left alone."""
+    stop = StopRequest()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+
+    def handler(signum, frame):
+        name = signal.Signals(signum).name
+        if stop.request(f"stopped by {name}"):
+            print(f"\ncosim: {name}: stopping after this tick (outputs made safe, everything recorded kept)",
+                  file=sys.stderr, flush=True)
+        else:
+            print(f"\ncosim: {name}: already stopping", file=sys.stderr, flush=True)
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
 def run(request: RunRequest) -> dict[str, Any]:
     """Run the scenario, or every combination of its sweep; returns the summary written."""
     scenario = load_scenario(request.scenario_file, request.overrides)
-    if not scenario.sweep:
-        return run_one(scenario, request)
+    with stop_on_signals() as stop:
+        if not scenario.sweep:
+            return run_one(scenario, request, stop)
+        return _run_sweep(scenario, request, stop)
+
+
+def _run_sweep(scenario: Scenario, request: RunRequest, stop: StopRequest) -> dict[str, Any]:
     combos = sweep_overrides(scenario)
     rows = []
     for i, (labels, extra) in enumerate(combos):
+        if stop.event.is_set():
+            print(f"cosim: sweep stopped: {len(combos) - i} of {len(combos)} runs not started", file=sys.stderr)
+            break
         tag = "_".join(f"{k}={v}" for k, v in labels.items())
         sub_dir = request.out_dir / "runs" / f"{i:03d}_{_safe(tag)}"
         print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
         sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
-                         request.processes, request.progress, request.node_cpus)
+                         request.processes, request.progress, request.node_cpus, request.realtime)
         try:
-            summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub)
+            summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub, stop)
         except RunError as exc:  # the other runs go on; this one's summary says what happened
             print(f"  {exc}", file=sys.stderr)
             written = sub_dir / "summary.json"  # absent when the run failed before its first step
@@ -69,6 +115,8 @@ def run(request: RunRequest) -> dict[str, Any]:
         rows.append({**labels, **{k: summary[k] for k in METRICS if summary[k] is not None},
                      "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
     summary: dict[str, Any] = {"scenario": scenario.name, "sweep": rows}
+    if stop.event.is_set():
+        summary["status"] = "interrupted"
     table = sweep_table(rows)
     threshold = scenario.report.threshold_mm
     if threshold:
@@ -84,12 +132,14 @@ def run(request: RunRequest) -> dict[str, Any]:
     return summary
 
 
-def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
+def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = None) -> dict[str, Any]:
     """Run one scenario (no sweep) into ``request.out_dir``; returns and writes ``summary.json``.
 
     A component failure still writes the outputs recorded so far and the
-    summary (with ``status: "failed"``), then raises :class:`RunError`.
+    summary (with ``status: "failed"``), then raises :class:`RunError`; a
+    ``stop`` request ends the run with ``status: "interrupted"``.
     """
+    stop = stop or StopRequest()
     cpus = node_cpus(request.node_cpus) if request.processes else None
     out = Path(request.out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -97,6 +147,10 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
     path = make_path(scenario.path.plugin, scenario.path.params) if scenario.path else None
     run_id = secrets.token_hex(4)
     recorder = TraceRecorder(scenario, wiring, out, path)
+    recorder.open()
+    realtime = request.realtime or scenario.realtime
+    _write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
+                                       "note": "written when the run started; a run that ends rewrites it"})
     ports = [(c, p.name) for c in wiring.order for p in wiring.outputs[c]]
     endpoint = f"tcp/127.0.0.1:{_free_port()}" if request.processes else None
     session = bus.open_session(listen=[endpoint]) if endpoint else bus.open_session()
@@ -117,15 +171,21 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
                 timeout = scenario.components[name].timeout_s or scenario.timeout_s
                 steppers[name] = Stepper(name, setup_component(scenario, wiring, name), session, run_id,
                                          wiring, cache, timeout)
-        scheduler = Scheduler(scenario, wiring, group, cache, [recorder])
-        with _progress_bar(scenario.n_steps, request.progress) as bar:
+        scheduler = Scheduler(scenario, wiring, group, cache, [recorder], realtime, stop)
+        with _progress_bar(scenario.n_steps, request.progress, scheduler.pacer) as bar:
             try:
                 completed = scheduler.run(on_progress=bar)
             except RunError as exc:
                 error, completed = exc, recorder.ticks
+    except RunError as exc:  # in set-up: nothing ran
+        error = exc
+    except BaseException as exc:  # set-up failed otherwise (or Ctrl-C before the handlers): say so, then raise
+        _write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed",
+                                           "error": f"set-up: {type(exc).__name__}: {exc}"})
+        raise
     finally:
-        if group is not None:
-            group.close(hung=error.component if error else None)
+        if group is not None:  # closed already unless set-up failed
+            group.close(hung=None)
         for proc in procs:
             try:
                 proc.wait(timeout=5)
@@ -135,7 +195,11 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
             cache.close()
         session.close()
     total_wall = time.perf_counter() - wall0
-    summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s, total_wall, error)
+    recorder.finish(str(error) if error else None)  # a no-op unless set-up failed
+    summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s if scheduler else 0.0, total_wall,
+                       error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
+    if scheduler and scheduler.pacer:
+        summary["realtime"] = scheduler.pacer.summary()
     _write_json(out / "summary.json", summary)
     if error:
         raise RunError(error.component, f"{str(error).split(': ', 1)[-1]} (recorded so far: {out})")
@@ -143,14 +207,16 @@ def run_one(scenario: Scenario, request: RunRequest) -> dict[str, Any]:
 
 
 def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s: float,
-             total_wall_s: float, error: RunError | None) -> dict[str, Any]:
+             total_wall_s: float, error: RunError | None, interrupted: str | None) -> dict[str, Any]:
     """``wall_time_s`` and ``realtime_factor`` cover the stepping loop; ``total_wall_time_s``
     adds set-up (processes, FMU instantiation) and writing the outputs."""
     sim = completed * scenario.dt_s
+    status = "fault" if isinstance(error, RunFault) else "failed" if error else \
+        "interrupted" if interrupted else "ok"
     return {
         "scenario": scenario.name,
-        "status": "fault" if isinstance(error, RunFault) else "failed" if error else "ok",
-        "error": str(error) if error else None,
+        "status": status,
+        "error": str(error) if error else f"{interrupted} at t = {sim:.3f} s" if interrupted else None,
         **run_figures(recorder),
         "steps": completed,
         "sim_time_s": sim,
@@ -185,7 +251,8 @@ def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: st
             cmd += ["--cpus", cpus]
         for item in request.overrides:
             cmd += ["--set", item]
-        procs[name] = subprocess.Popen(cmd, stdin=subprocess.DEVNULL)
+        # a session of their own: a Ctrl-C at the terminal reaches the scheduler only, which stops them
+        procs[name] = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True)
         started.append(procs[name])
     pending = set(procs)
     deadline = time.monotonic() + NODE_START_TIMEOUT_S
@@ -212,10 +279,11 @@ def _free_port() -> int:
 
 
 class _progress_bar:
-    """tqdm over ticks, shown only when a run lasts more than a couple of seconds."""
+    """tqdm over ticks, shown only when a run lasts more than a couple of seconds;
+    with a :class:`~cosim.pacing.Pacer`, the last tick's lateness and the misses so far."""
 
-    def __init__(self, total: int, enabled: bool):
-        self.total, self.enabled, self.bar = total, enabled, None
+    def __init__(self, total: int, enabled: bool, pacer=None):
+        self.total, self.enabled, self.pacer, self.bar = total, enabled, pacer, None
 
     def __enter__(self):
         if self.enabled:
@@ -226,6 +294,9 @@ class _progress_bar:
 
     def __call__(self, done: int) -> None:
         if self.bar is not None:
+            if self.pacer is not None:
+                self.bar.set_postfix_str(f"late {self.pacer.latest_ms():.2f} ms, missed {self.pacer.missed}",
+                                         refresh=False)
             self.bar.update(done - self.bar.n)
 
     def __exit__(self, *exc):

@@ -99,6 +99,9 @@ class Scenario(_Strict):
     plugins: list[str] = Field(default_factory=list,
                                description="Python plugin files to load, relative to the scenario file")
     timeout_s: float = Field(30.0, gt=0, description="default per-step timeout of every component")
+    realtime: float | None = Field(None, gt=0, description=(
+        "pace the ticks on the wall clock at this factor of real time (1: real time, as against "
+        "hardware); late ticks are skipped and counted; none: as fast as possible"))
     path: PathSpec | None = None
     components: dict[str, ComponentSpec]
     record: RecordSpec = Field(default_factory=RecordSpec)

@@ -15,8 +15,11 @@ not depend on where components run:
 
 The loop runs in a worker thread while the calling thread watches it: a step
 that exceeds its timeout, raises, or whose node disappears (liveliness token
-gone) stops the run with the component's name, after the observers have
-flushed what was recorded so far.
+gone) stops the run with the component's name; :class:`StopRequest`
+(Ctrl-C, SIGTERM) ends it after the tick under way. Either way the
+components are closed first (a coil driver makes its outputs safe), then the
+observers finish what they recorded. With a :class:`~cosim.pacing.Pacer`
+ticks follow the wall clock, and nodes are granted one tick at a time.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ import zenoh
 from cosim import bus
 from cosim.component import ComponentFault
 from cosim.errors import UserError
+from cosim.pacing import Pacer
 from cosim.portcache import PortStore, PortTimeout, expected_stamp
 from cosim.scenario import Scenario
 from cosim.stepper import Stepper
@@ -58,12 +62,29 @@ class RunFault(RunError):
         super().__init__(component, f"fault: {message}", tick)
 
 
+class StopRequest:
+    """A request to stop the run(s) after the tick under way, and why (set from a signal handler)."""
+
+    def __init__(self):
+        self.event = threading.Event()
+        self.reason: str | None = None
+
+    def request(self, reason: str) -> bool:
+        """False when a stop was already requested."""
+        if self.event.is_set():
+            return False
+        self.reason = reason
+        self.event.set()
+        return True
+
+
 class Observer(Protocol):
     """Read-only watcher of a run (recorders, loggers). Never changes the run."""
 
     def on_tick(self, tick: int, t: float, values: dict[tuple[str, str], np.ndarray]) -> None: ...
 
-    def finish(self, error: str | None) -> None: ...
+    def finish(self, error: str | None, event: str | None = None) -> None:
+        """The run ended (``error``: why it failed); ``event``: the failure or stop, to note."""
 
 
 @dataclass
@@ -75,6 +96,7 @@ class Progress:
     since: float = field(default_factory=time.monotonic)
     error: BaseException | None = None
     done: bool = False
+    hung: str | None = None  # the component whose step never returned
 
     def busy(self, *names: str) -> None:
         self.pending, self.since = names, time.monotonic()
@@ -85,13 +107,14 @@ class LocalGroup:
 
     def __init__(self, steppers: dict[str, Stepper]):
         self.steppers = steppers
+        self.closed = False
 
     def start(self, order: list[str], progress: Progress, observed_ready: Callable[[], list[str]]) -> None:
         for name in order:
             progress.busy(name)
             self.steppers[name].publish_initial()
 
-    def plan(self, n_steps: int, dt_s: float) -> None:
+    def plan(self, n_steps: int, window: int) -> None:
         """Nothing to plan: local steps happen one at a time."""
 
     def step(self, tick: int, t: float, due: list[str], progress: Progress) -> None:
@@ -110,6 +133,9 @@ class LocalGroup:
         """A stuck local step cannot be woken; the worker thread is abandoned."""
 
     def close(self, hung: str | None) -> None:
+        if self.closed:
+            return
+        self.closed = True
         for name, stepper in self.steppers.items():
             if name != hung:  # its thread is stuck inside step(); closing would block too
                 _close_quietly(name, stepper.close)
@@ -149,6 +175,9 @@ class RemoteGroup:
             lambda sample: self._inbox.put((sample.attachment.to_bytes(), sample.payload.to_bytes())))
         self._done = {n: -1 for n in names}  # the last tick each node has reported
         self._alive = session.liveliness().declare_subscriber(bus.alive_key(run_id), self._on_alive)
+        # the nodes stop (their outputs made safe) when this token goes: this process ended
+        self._token = session.liveliness().declare_token(bus.scheduler_alive_key(run_id))
+        self.closed = False
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).rsplit("/", 1)[-1]
@@ -279,8 +308,9 @@ class RemoteGroup:
             time.sleep(0.02)
         raise RunError(senders[0], "its initial outputs never reached their consumers")
 
-    def plan(self, n_steps: int, dt_s: float) -> None:
-        self._n_steps, self._granted = n_steps, 0
+    def plan(self, n_steps: int, window: int) -> None:
+        """``window``: ticks the nodes may run ahead (1 under real-time pacing)."""
+        self._n_steps, self._granted, self._window = n_steps, 0, window
 
     def step(self, tick: int, t: float, due: list[str], progress: Progress) -> None:
         """Grant ticks up to ``WINDOW`` ahead, then wait for this tick's replies.
@@ -291,12 +321,15 @@ class RemoteGroup:
         the result identical to strict lockstep.
         """
         progress.busy(*due)
-        if self._granted - tick <= WINDOW // 2 and self._granted < self._n_steps:
-            self._granted = min(tick + WINDOW, self._n_steps)
+        if self._granted - tick <= self._window // 2 and self._granted < self._n_steps:
+            self._granted = min(tick + self._window, self._n_steps)
             self._tick_pub.put(bus.encode_json({"until": self._granted}))
         self.gather(due, tick, None, progress)
 
     def close(self, hung: str | None) -> None:
+        if self.closed:
+            return
+        self.closed = True
         for name in self.names:
             if name not in self._dead:
                 _close_quietly(name, lambda n=name: self.command(n, "stop"))
@@ -317,9 +350,14 @@ class Scheduler:
     """Runs one scenario's lockstep loop over a group of components."""
 
     def __init__(self, scenario: Scenario, wiring: Wiring, group: LocalGroup | RemoteGroup,
-                 cache: PortStore, observers: list[Observer]):
+                 cache: PortStore, observers: list[Observer], realtime_factor: float | None = None,
+                 stop: StopRequest | None = None):
         self.scenario, self.wiring, self.group = scenario, wiring, group
         self.cache, self.observers = cache, observers
+        self.stop = stop or StopRequest()
+        self.stop_event = self.stop.event
+        self.pacer = (Pacer(scenario.dt_s, realtime_factor, scenario.n_steps, self.stop_event)
+                      if realtime_factor else None)
         self.timeouts = {n: scenario.components[n].timeout_s or scenario.timeout_s for n in wiring.order}
         self._observed = [(c, p.name, wiring.periods[c]) for c in wiring.order for p in wiring.outputs[c]]
         self.progress = Progress()
@@ -327,7 +365,11 @@ class Scheduler:
         self._flushed: tuple = (None, 0.0)  # (occasion, time) of the watchdog's last flush
 
     def run(self, on_progress: Callable[[int], None] | None = None) -> int:
-        """Run all ticks; returns the number completed. Raises :class:`RunError` on a failure."""
+        """Run the ticks (all, or up to a requested stop); returns the number completed.
+
+        Raises :class:`RunError` on a failure. The components are closed before
+        the observers finish, so outputs are made safe before anything is written.
+        """
         worker = threading.Thread(target=self._work, name="cosim-scheduler", daemon=True)
         worker.start()
         state = self.progress
@@ -338,8 +380,10 @@ class Scheduler:
             self._watch()
         faulted = isinstance(state.error, RunFault)  # its tick was recorded, as far as it went
         completed = state.tick + 1 if (faulted or not state.error) else state.tick
+        self.group.close(hung=state.hung)
+        error = str(state.error) if state.error else None
         for obs in self.observers:
-            obs.finish(str(state.error) if state.error else None)
+            obs.finish(error, error or self.stop.reason)
         if state.error:
             raise state.error
         return completed
@@ -361,6 +405,7 @@ class Scheduler:
         if self._heard_out(since, pending) and time.monotonic() - since > limit:
             t = max(state.tick, 0) * self.scenario.dt_s
             self._stop(pending[0], f"step at t = {t:.3f} s did not finish within {limit:g} s (hung)")
+            state.hung = pending[0]
 
     def _heard_out(self, occasion, names) -> bool:
         """Whether ``names`` have had ``FLUSH_GRACE_S`` to report the steps they hold back
@@ -382,12 +427,16 @@ class Scheduler:
 
     def _work(self) -> None:
         state, dt, order = self.progress, self.scenario.dt_s, self.wiring.order
-        periods = self.wiring.periods
+        periods, pacer = self.wiring.periods, self.pacer
         try:
             self.group.start(order, state, self._observed_missing)
-            self.group.plan(self.scenario.n_steps, dt)
+            self.group.plan(self.scenario.n_steps, 1 if pacer else WINDOW)
+            if pacer:
+                pacer.realtime_priority()
             wall0 = time.perf_counter()
             for tick in range(self.scenario.n_steps):
+                if self.stop_event.is_set() or (pacer and not pacer.wait()):
+                    return
                 t = tick * dt
                 state.tick = tick
                 self.group.step(tick, t, [n for n in order if tick % periods[n] == 0], state)

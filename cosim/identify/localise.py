@@ -163,7 +163,7 @@ def _clue(name: str, b: dict) -> str:
 
 def _growth(horizon_means: dict) -> str | None:
     keys = sorted((float(h), m) for h, m in horizon_means.items() if m is not None and np.isfinite(m))
-    if len(keys) < 2 or keys[0][1] <= 0:
+    if len(keys) < 2 or keys[0][1] <= 0 or keys[-1][1] <= 0:
         return None
     (h0, e0), (h1, e1) = keys[0], keys[-1]
     slope = np.log(e1 / e0) / np.log(h1 / h0)

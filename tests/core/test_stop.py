@@ -1,0 +1,98 @@
+"""Stopping a run: SIGINT and SIGTERM keep every step up to the stop, SIGKILL all but the last second."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.data import read_log
+from cosim.recorder import FLUSH_EVERY_S, load_trace
+
+TOY = Path(__file__).parent / "data" / "toy.yaml"
+DT_S = 0.02
+
+
+def _start(out: Path, *extra: str) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "cosim.cli", "run", str(TOY), "--out", str(out), "--quiet",
+           "--set", "duration_s=3000", *extra]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _rows(out: Path) -> int:
+    log = out / "log.csv"
+    return max(len(log.read_text().splitlines()) - 1, 0) if log.is_file() else 0
+
+
+def _wait_for_rows(out: Path, proc: subprocess.Popen, rows: int, timeout_s: float = 60.0) -> float:
+    """Wait until log.csv has ``rows`` data rows; returns when (time.monotonic())."""
+    deadline = time.monotonic() + timeout_s
+    while _rows(out) < rows:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, f"log.csv never reached {rows} rows"
+        time.sleep(0.02)
+    return time.monotonic()
+
+
+def _nodes_of(scenario_marker: str) -> list[str]:
+    found = []
+    for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+        try:
+            text = cmdline.read_bytes().replace(b"\0", b" ").decode()
+        except OSError:
+            continue
+        if "cosim.cli node" in text and scenario_marker in text:
+            found.append(text)
+    return found
+
+
+@pytest.mark.parametrize("sig, processes", [(signal.SIGINT, False), (signal.SIGTERM, False),
+                                            (signal.SIGINT, True), (signal.SIGTERM, True)])
+def test_a_signal_stops_the_run_and_keeps_every_step(tmp_path, sig, processes):
+    out = tmp_path / "run"
+    proc = _start(out, *(["--processes"] if processes else []))
+    _wait_for_rows(out, proc, 300)
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "everything recorded until then is kept" in stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["error"].startswith(f"stopped by {sig.name}")
+    steps = summary["steps"]
+    assert 300 <= steps < 150_000
+    log = read_log(out / "log.csv", outlier_mm=50.0)
+    assert log.n == steps and log.t_s[-1] == pytest.approx((steps - 1) * DT_S)
+    trace = load_trace(out)
+    assert trace["plant.position"].shape == (steps, 3) and np.isfinite(trace["plant.position"]).all()
+    assert not (out / "trace.part").exists()  # the trace was completed into trace.npz
+    assert not _nodes_of(str(TOY))
+
+
+def test_a_killed_scheduler_loses_at_most_the_last_second(tmp_path):
+    """Paced at real time, so the ticks done by the kill are known from the wall clock."""
+    out = tmp_path / "run"
+    proc = _start(out, "--realtime", "1", "--processes")
+    started = _wait_for_rows(out, proc, 1)  # the first batch is out: the loop runs
+    rows_then = _rows(out)
+    time.sleep(3.0)
+    killed = time.monotonic()
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=30)
+    ticks_since = (killed - started) / DT_S
+    assert _rows(out) >= rows_then + ticks_since - FLUSH_EVERY_S / DT_S - 5, (_rows(out), rows_then, ticks_since)
+    assert json.loads((out / "summary.json").read_text())["status"] == "running"  # it says it never finished
+    log = read_log(out / "log.csv", outlier_mm=50.0)
+    assert np.allclose(np.diff(log.t_s), DT_S)
+    trace = load_trace(out)  # from trace.part: every whole row written
+    assert len(trace["t_s"]) >= log.n - 1 and np.array_equal(trace["t_s"][: log.n - 1], log.t_s[: log.n - 1])
+    deadline = time.monotonic() + 20  # the nodes saw the scheduler go and stopped themselves
+    while _nodes_of(str(TOY)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _nodes_of(str(TOY))
