@@ -19,13 +19,13 @@ def add_commands(sub) -> None:
                    help="override a scenario field by dotted path, e.g. components.camera.params.interval_s=0.1")
     p.add_argument("--processes", action="store_true",
                    help="run every component as its own `cosim node` process over zenoh TCP on loopback")
-    p.add_argument("--node-cpus", default="auto", metavar="auto|none|LIST",
+    p.add_argument("--node-cpus", default=None, metavar="auto|none|LIST",
                    help="with --processes: CPUs for the nodes (auto: all on one CPU, the fastest "
                         "placement for a lockstep chain; none: the OS places them; or e.g. 1 or 0,2-3)")
     p.add_argument("--realtime", nargs="?", type=float, const=1.0, default=None, metavar="FACTOR",
                    help="pace the ticks on the wall clock (FACTOR times real time, default 1); late ticks "
                         "are skipped and counted in summary.json's 'realtime'")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary lines (errors only)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("validate", help="check a scenario and print its wiring as a table")
@@ -68,8 +68,24 @@ def cmd_run(args) -> int:
     out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
     if args.realtime is not None and not args.realtime > 0:
         raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
-    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet, args.node_cpus,
-                             args.realtime))
+    if args.node_cpus is not None and not args.processes:
+        raise UserError(f"--node-cpus {args.node_cpus}: only applies with --processes (the nodes' CPUs)")
+    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
+                             args.node_cpus or "auto", args.realtime))
+    if not args.quiet:
+        _print_run(summary, out)
+    if summary.get("status") == "interrupted":
+        print(f"cosim run: {summary.get('error') or 'stopped'}; everything recorded until then is kept",
+              file=sys.stderr)
+        return 130
+    failed = [row for row in summary.get("sweep", []) if row["status"] != "ok"]
+    if failed:
+        print(f"cosim run: {len(failed)} of {len(summary['sweep'])} sweep runs did not finish: "
+              + ", ".join(f"{row['dir']} ({row['status']})" for row in failed), file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _print_run(summary: dict, out: Path) -> None:
     if "sweep" not in summary:
         err = summary["tracking_error_mm"]
         if err:
@@ -82,16 +98,6 @@ def cmd_run(args) -> int:
                   f"missed, lateness p99 {rt['lateness_ms']['p99']} ms (max {rt['lateness_ms']['max']} ms)")
     print(f"recording: {out / 'recording.rrd' if 'sweep' not in summary else out / 'runs'}")
     print(f"summary:   {out / 'summary.json'}")
-    if summary.get("status") == "interrupted":
-        print(f"cosim run: {summary.get('error') or 'stopped'}; everything recorded until then is kept",
-              file=sys.stderr)
-        return 130
-    failed = [row for row in summary.get("sweep", []) if row["status"] != "ok"]
-    if failed:
-        print(f"cosim run: {len(failed)} of {len(summary['sweep'])} sweep runs did not finish: "
-              + ", ".join(f"{row['dir']} ({row['status']})" for row in failed), file=sys.stderr)
-        return 1
-    return 0
 
 
 def cmd_validate(args) -> int:

@@ -19,6 +19,7 @@ import contextlib
 import json
 import os
 import secrets
+import shutil
 import signal
 import socket
 import subprocess
@@ -95,6 +96,7 @@ def run(request: RunRequest) -> dict[str, Any]:
 
 def _run_sweep(scenario: Scenario, request: RunRequest, stop: StopRequest) -> dict[str, Any]:
     combos = sweep_overrides(scenario)
+    _clear_earlier_sweep(request.out_dir / "runs")
     rows = []
     for i, (labels, extra) in enumerate(combos):
         if stop.event.is_set():
@@ -102,7 +104,8 @@ def _run_sweep(scenario: Scenario, request: RunRequest, stop: StopRequest) -> di
             break
         tag = "_".join(f"{k}={v}" for k, v in labels.items())
         sub_dir = request.out_dir / "runs" / f"{i:03d}_{_safe(tag)}"
-        print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
+        if request.progress:
+            print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
         sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
                          request.processes, request.progress, request.node_cpus, request.realtime)
         try:
@@ -124,12 +127,27 @@ def _run_sweep(scenario: Scenario, request: RunRequest, stop: StopRequest) -> di
     summary["plots"] = [p.name for p in sweep_plot(rows, request.out_dir, threshold)]
     _write_json(request.out_dir / "summary.json", summary)
     (request.out_dir / "summary.md").write_text(table)
+    if not request.progress:  # --quiet
+        return summary
     print(table)
     for item in summary.get("largest_below_threshold", []):
         group = " ".join(f"{k}={v}" for k, v in item.items() if k not in ("axis", "largest_below", "threshold_mm"))
         print(f"largest {item['axis']} with mean tracking error below {threshold:g} mm: "
               f"{item['largest_below']} ({group})")
     return summary
+
+
+def _clear_earlier_sweep(runs_dir: Path) -> None:
+    """Remove the run folders an earlier sweep left in ``runs_dir`` (``NNN_label``, holding a
+    summary.json), so none is mistaken for one of this sweep's; says how many went."""
+    if not runs_dir.is_dir():
+        return
+    stale = sorted(d for d in runs_dir.iterdir()
+                   if d.is_dir() and d.name[:3].isdigit() and d.name[3:4] == "_" and (d / "summary.json").is_file())
+    for d in stale:
+        shutil.rmtree(d)
+    if stale:
+        print(f"cosim: cleared {len(stale)} run folder(s) of an earlier sweep in {runs_dir}", file=sys.stderr)
 
 
 def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = None) -> dict[str, Any]:

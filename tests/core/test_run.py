@@ -75,3 +75,26 @@ def test_a_failing_sweep_run_does_not_stop_the_others(tmp_path, capsys):
     rows = json.loads((tmp_path / "summary.json").read_text())["sweep"]
     assert [(r["fail_at_s"], r["status"]) for r in rows] == [(1.0, "failed"), (100.0, "ok")]
     assert "1 of 2 sweep runs did not finish" in capsys.readouterr().err
+
+
+def test_a_smaller_sweep_into_the_same_folder_clears_the_earlier_runs(tmp_path, capsys):
+    from cosim.cli import main
+
+    three = 'sweep={"components.camera.params.interval_s": [0.02, 0.04, 0.06]}'
+    one = 'sweep={"components.camera.params.interval_s": [0.08]}'
+    common = ["run", str(TOY), "--out", str(tmp_path), "--set", "duration_s=0.4"]
+    assert main([*common, "--set", three]) == 0
+    assert len(list((tmp_path / "runs").iterdir())) == 3
+    capsys.readouterr()
+    assert main([*common, "--set", one, "--quiet"]) == 0
+    out, err = capsys.readouterr()
+    assert out == ""  # --quiet: no summary lines
+    assert f"cleared 3 run folder(s) of an earlier sweep in {tmp_path / 'runs'}" in err
+    assert [d.name for d in (tmp_path / "runs").iterdir()] == ["000_interval_s=0.08"]
+
+
+def test_node_cpus_without_processes_is_an_error(tmp_path, capsys):
+    from cosim.cli import main
+
+    assert main(["run", str(TOY), "--out", str(tmp_path), "--node-cpus", "0"]) == 2
+    assert "--node-cpus 0: only applies with --processes" in capsys.readouterr().err
