@@ -4,19 +4,21 @@ When no listed effect explains the error (or on ``cosim diagnose --discover``),
 the residual force is regressed on a library of candidate force terms
 (:data:`TERMS`: constants, position, velocity and command, |v| v, |u| u,
 position x command, drag near a wall, quadratic position terms; not the
-model's own drag, thrust and weight terms) with a
-sparse method (pysindy's sequentially thresholded least squares, STLSQ), in
-the same output-error setting as the effect fits:
+model's own drag, thrust and weight terms) by sparse regression: forward
+orthogonal least squares (pysindy's ``FROLS``, :func:`forward_selection`: one
+term at a time, the one that explains most of what is left), in the same
+output-error setting as the effect fits:
 
 1. each term j, a force ``coefficient x feature_j(p, v, u) e_axis``, is added
    to the reference model with coefficient 0, and the sensitivity of the
    predicted positions of the training windows (initial states eliminated)
    to its coefficient is taken by a finite difference; the host model's own
    parameters get columns too and are projected out (they stay free);
-2. STLSQ fits the training windows' position residuals for a path of
-   thresholds; the threshold is chosen on the *held-out* windows (the
-   sparsest form (at most :data:`MAX_TERMS` terms) that keeps 80 % of the
-   largest drop of held-out error);
+2. forward selection fits the training windows' position residuals with
+   1, 2, ... :data:`MAX_TERMS` terms; the number of terms is chosen on the
+   *held-out* windows (the sparsest form that keeps 80 % of the largest drop
+   of held-out error), and a drop that is not significant (paired t over
+   blocks of windows below the verdict's :data:`MIN_T`) is no form;
 3. the chosen terms become an effect (parameters = coefficients) refitted
    jointly with the model; its drop of held-out error is reported with the
    form in words (:func:`describe`) and written as an effect file
@@ -33,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.identify.effect import Effect, Param
+from cosim.identify.verdict import BLOCK_S, MIN_T, paired_t
 
 AXES = "xyz"
 WALL_MM = 75.0  # the tank's half size: walls at +-75 mm
@@ -41,7 +44,7 @@ MIN_TRAIN_WINDOWS = 300
 MIN_TEST_WINDOWS = 60
 CHOICE_TOLERANCE = 0.2  # sparsest form keeping 80 % of the best held-out gain
 MAX_TERMS = 12  # a form with more terms is not an explanation
-RIDGE = 1e-3  # ridge of STLSQ's least squares on unit-norm columns (near-collinear terms stay finite)  # sparsest form whose held-out error is within this of the best
+COLLINEAR = 1e-3  # a term whose part outside the chosen ones is below this share of it ends the selection
 
 
 @dataclass(frozen=True)
@@ -134,8 +137,6 @@ def discover(reference, ttr, fit_starts, fit_len, tte, test_starts, fit_fn, say=
     "none", "too_short"), ``explanation`` (a sentence), and when found ``terms``, ``params``,
     ``words``, ``source`` (the effect file) and the refit's ``fitted``/``summary``/``ev``.
     """
-    from pysindy.optimizers import STLSQ
-
     from cosim.identify.joint import JointModel
 
     say = say or (lambda m: None)
@@ -164,30 +165,28 @@ def discover(reference, ttr, fit_starts, fit_len, tte, test_starts, fit_fn, say=
     rp = r_tr - Q @ (Q.T @ r_tr)
     norms = np.linalg.norm(Jp, axis=0)
     keep = norms > 1e-6 * max(norms.max(), 1e-300)
-    X = Jp[:, keep] / norms[keep]  # unit columns: thresholds compare like with like
-    top = float(np.max(np.abs(X.T @ rp))) if keep.any() else 0.0  # the largest single-term coefficient
+    cols = np.flatnonzero(keep)
     base_err = _rms(r_te)
-    path = []
-    for thr in top * np.geomspace(0.9, 1e-3, 14):
-        opt = STLSQ(threshold=thr, alpha=RIDGE, max_iter=30, normalize_columns=False)
-        with warnings.catch_warnings():  # a threshold above every coefficient is a valid (empty) answer here
-            warnings.simplefilter("ignore", UserWarning)
-            opt.fit(X, rp[:, None])
+    path = [(0, base_err, np.zeros(n_terms))]
+    for sel, coef in forward_selection(Jp[:, cols], rp, MAX_TERMS):
         xi = np.zeros(n_terms)
-        xi[keep] = opt.coef_[0] / norms[keep]
+        xi[cols[sel]] = coef
         eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]  # host adjustment for these terms
-        err = _rms(r_te - J_te @ xi - H_te @ eta)
-        path.append((int(np.count_nonzero(xi)), err, xi))
+        path.append((len(sel), _rms(r_te - J_te @ xi - H_te @ eta), xi))
     best_err = min(e for _, e, _ in path)
     # the held-out windows' error is mostly camera noise: compare gains, not errors
     enough = best_err + CHOICE_TOLERANCE * (base_err - best_err)
-    n_sel, err_sel, xi = min((p for p in path if p[1] <= enough and 0 < p[0] <= MAX_TERMS),
-                             key=lambda p: (p[0], p[1]), default=(0, base_err, np.zeros(n_terms)))
-    say(f"discover: {n_sel} terms chosen on held-out windows (linearised rms {base_err:.4f} -> {err_sel:.4f} mm)")
-    if n_sel == 0 or err_sel >= base_err:
+    n_sel, err_sel, xi = min((p for p in path if p[1] <= enough), key=lambda p: (p[0], p[1]))
+    eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]
+    t = paired_t({"valid": np.ones(len(test_win), bool), "err": r_te.reshape(len(test_win), -1)},
+                 {"valid": np.ones(len(test_win), bool), "err": (r_te - J_te @ xi - H_te @ eta).reshape(len(test_win), -1)},
+                 test_win, max(1, int(round(BLOCK_S / ttr.dt_s))))
+    say(f"discover: {n_sel} terms chosen on held-out windows (linearised rms {base_err:.4f} -> {err_sel:.4f} mm, "
+        f"t = {t:.1f})")
+    if n_sel == 0 or err_sel >= base_err or t < MIN_T:
         return {"status": "none", "explanation": "no combination of the candidate terms lowers the held-out "
-                "error: what is left looks like noise, or a form the candidates cannot express (a time-varying "
-                "disturbance, a delay)", "path": [[n, e] for n, e, _ in path]}
+                "error significantly: what is left looks like noise, or a form the candidates cannot express "
+                "(a time-varying disturbance, a delay)", "path": [[n, e] for n, e, _ in path]}
     chosen = [i for i in range(n_terms) if xi[i] != 0.0]
     terms = [TERMS[i] for i in chosen]
     effect = library_effect(terms, scales[chosen], coefs=xi[chosen])
@@ -201,6 +200,43 @@ def discover(reference, ttr, fit_starts, fit_len, tte, test_starts, fit_fn, say=
 
 def _rms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+
+
+def forward_selection(X: np.ndarray, y: np.ndarray, max_terms: int):
+    """Forward orthogonal least squares: the terms chosen one at a time, each step's least-squares fit.
+
+    ``X`` (N, M) candidate columns, ``y`` (N,) target. Each step takes the
+    column whose part orthogonal to the columns chosen so far explains most of
+    what ``y`` still leaves (pysindy's ``FROLS``, forward regression orthogonal
+    least squares), then refits ``y`` on all chosen columns. The columns are
+    scaled to unit norm first and the problem is reduced to its (M, M)
+    triangular factor (``X = Q R``: same projections, same order of choice, in
+    a fraction of the time). Yields ``(chosen (k,) column indices, coefficients
+    (k,))`` for k = 1 .. ``max_terms`` (fewer when the columns run out).
+    """
+    from pysindy.optimizers import FROLS
+
+    norms = np.linalg.norm(X, axis=0)
+    q, r = np.linalg.qr(X / np.where(norms > 0, norms, 1.0))
+    opt = FROLS(max_iter=min(max_terms, X.shape[1]), alpha=1e-12, normalize_columns=False)
+    with warnings.catch_warnings():  # FROLS warns when it stops early; the path so far is what is wanted
+        warnings.simplefilter("ignore")
+        opt.fit(r, (q.T @ y)[:, None])
+    seen: list[int] = []
+    for coef in opt.history_[1:]:  # history_[k]: the fit with k terms (history_[0] has none)
+        support = np.flatnonzero(np.asarray(coef).reshape(-1))
+        new = [int(j) for j in support if j not in seen]
+        if len(new) != 1 or (seen and _outside_share(r[:, seen], r[:, new[0]]) < COLLINEAR):
+            return  # no further column, or one the chosen ones (nearly) span: its coefficients would be arbitrary
+        seen += new
+        chosen = np.array(seen)
+        yield chosen, np.linalg.lstsq(X[:, chosen], y, rcond=None)[0]
+
+
+def _outside_share(A: np.ndarray, b: np.ndarray) -> float:
+    """Share of ``b``'s norm outside the span of the columns of ``A``."""
+    left = b - A @ np.linalg.lstsq(A, b, rcond=None)[0]
+    return float(np.linalg.norm(left) / max(np.linalg.norm(b), 1e-300))
 
 
 def _term_scales(tl, starts, length) -> np.ndarray:
@@ -294,9 +330,11 @@ def _reading(terms, coefs: dict, host: dict) -> str | None:
                 f"{100 * G[a, b] * 10 / k:+.2g} % per 10 mm: the propulsion varies with position (a non-uniform "
                 "field)")
     if np.abs(M[:2, 2]).max() > 2 * max(np.abs(M[:2, :2]).max(), 1e-300):
-        a = int(np.argmax(np.abs(M[:2, 2])))
-        shear = f" (about {M[a, 2] / cd1:+.3g} mm/s per mm of height)" if cd1 > 0 else ""
-        return f"reading: a horizontal force along {AXES[a]} that grows with height: a shear flow{shear}"
+        g = M[:2, 2]  # horizontal force per mm of height, uN/mm
+        size = float(np.hypot(*g))
+        shear = f" (about {size / cd1:.3g} mm/s per mm of height)" if cd1 > 0 else ""
+        return (f"reading: a horizontal force that grows with height, pointing along ({g[0] / size:+.2f}, "
+                f"{g[1] / size:+.2f}) in (x, y): a shear flow{shear}")
     if np.abs(S).max() > 0 and np.abs(S).max() >= 2 * np.abs(A).max():
         return "reading: a force field linear in position and curl-free, like a magnetic gradient or a centring force"
     if np.abs(c0[:2]).max() > 0:

@@ -1,0 +1,55 @@
+"""Discovery's parts on synthetic data: the forward selection and the reading of a form in words."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.identify import discover as D
+
+
+def test_forward_selection_finds_a_sparse_support_among_correlated_columns():
+    """Three true columns among forty, the others correlated with them: the first three steps pick the truth,
+    and the three-term fit recovers the coefficients."""
+    rng = np.random.default_rng(3)
+    n, m = 4000, 40
+    base = rng.normal(size=(n, 8))
+    X = base @ rng.normal(size=(8, m)) / 4 + rng.normal(size=(n, m))  # columns share eight directions
+    X *= rng.uniform(0.01, 100.0, size=m)  # scales over four decades: selection must not depend on them
+    truth = {5: 2.0 / np.linalg.norm(X[:, 5]), 17: -1.5 / np.linalg.norm(X[:, 17]), 31: 1.0 / np.linalg.norm(X[:, 31])}
+    y = sum(c * X[:, j] for j, c in truth.items()) + 0.01 * rng.normal(size=n)
+    path = list(D.forward_selection(X, y, 12))
+    assert [len(sel) for sel, _ in path] == list(range(1, 13))
+    sel, coef = path[2]
+    assert sorted(sel.tolist()) == sorted(truth)
+    for j, c in zip(sel, coef):
+        assert c == pytest.approx(truth[int(j)], rel=0.02)
+
+
+def test_forward_selection_never_takes_a_column_the_chosen_ones_already_span():
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(2, 500))
+    X = np.stack([a, b, a + b, 2 * a], axis=1)  # columns 2 and 3 lie in the span of 0 and 1
+    y = a + b + 0.1 * rng.normal(size=500)
+    picked = [sel.tolist() for sel, _ in D.forward_selection(X, y, 4)]
+    assert picked[0] == [2]  # a + b explains most of y
+    assert len(picked) == 2 and set(picked[1]) in ({2, 0}, {2, 1}, {2, 3})  # then one more; nothing is left
+
+
+def _form(**coefs):
+    """Terms and coefficients from names like fx_y=..., the host's drag and thrust."""
+    by_name = {t.name: t for t in D.TERMS}
+    return [by_name[k] for k in coefs], coefs, {"Cd1": 0.2, "k": 1.0}
+
+
+@pytest.mark.parametrize("coefs, words", [
+    ({"fx_1": 0.2, "fx_y": -0.01, "fy_x": 0.01}, "turns about a vertical axis through about (-0, +20) mm"),
+    ({"fx_z": 0.006, "fy_z": 0.008}, "grows with height, pointing along (+0.60, +0.80) in (x, y): a shear flow "
+                                     "(about 0.05 mm/s per mm of height)"),
+    ({"fx_x_ux": 0.01}, "the thrust along x changes with x by about +10 % per 10 mm"),
+    ({"fx_1": 0.1, "fy_1": -0.05}, "a steady horizontal push (a drift of the water of about (+0.5, -0.25) mm/s)"),
+])
+def test_a_form_is_read_as_the_physics_it_looks_like(coefs, words):
+    terms, c, host = _form(**coefs)
+    reading = D.describe(terms, c, np.ones(len(terms)), host)[-1]
+    assert reading.startswith("reading:") and words in reading, reading
