@@ -2,64 +2,47 @@
 
 Each variant runs ``scenarios/diagnose/plain.yaml`` (four paths, spin rate
 stepped 4-16 Hz, every switchable plant effect off) for 40 s per path with
-one effect switched on in the plant FMU (or none). Diagnoses are cached per
-variant so each runs once.
+one effect switched on in the plant FMU (or none). Every variant is
+recorded and diagnosed once per session, two at a time.
 """
 
 from __future__ import annotations
 
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pytest
 
 from cosim import plugins
 
-ROOT = Path(__file__).resolve().parents[2]
-SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
+from plant_variants import VARIANTS, record_and_diagnose
+
 DATA = Path(__file__).parent / "data"
-PLANT = "components.plant.params"
-DURATION_S = 40
-
-VARIANTS = {
-    "plain": [],
-    "background_flow": [f"{PLANT}.background_flow_on=true", f"{PLANT}.flow_x=0.003"],
-    "wall_drag": [f"{PLANT}.wall_drag_on=true", f"{PLANT}.wall_drag_length=0.008", f"{PLANT}.wall_drag_gain=3"],
-    "gradient_force": [f"{PLANT}.gradient_force_on=true", f"{PLANT}.gradient_force_scale=3"],
-    "quadratic_drag": [f"{PLANT}.quadratic_drag_on=true"],
-}
 
 
 @pytest.fixture(scope="session")
-def plant_logs(tmp_path_factory):
-    """``get(variant) -> [log paths]``: records a variant's four logs on first use."""
-    from cosim.runner import RunRequest, run
+def plant_variants(tmp_path_factory):
+    """{variant: (log paths, default diagnosis)} for every variant, made two at a time on first use.
 
+    Spawned workers (one core each): the runner opens zenoh sessions, which a forked child must not inherit.
+    """
     root = tmp_path_factory.mktemp("diagnose_plant")
-    cache: dict[str, list[Path]] = {}
-
-    def get(variant: str) -> list[Path]:
-        if variant not in cache:
-            out = root / variant
-            run(RunRequest(SCENARIO, out, [f"duration_s={DURATION_S}", *VARIANTS[variant]], progress=False))
-            cache[variant] = sorted(out.glob("runs/*/log.csv"))
-        return cache[variant]
-
-    return get
+    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        done = pool.map(record_and_diagnose, [(v, str(root)) for v in VARIANTS])
+        return {variant: (logs, result) for variant, logs, result in done}
 
 
 @pytest.fixture(scope="session")
-def diagnosed(plant_logs):
-    """``get(variant) -> result dict``: the default diagnosis (every library effect) of a variant, cached."""
-    from cosim.identify.diagnose import run
+def plant_logs(plant_variants):
+    """``get(variant) -> [log paths]``: a variant's four logs."""
+    return lambda variant: plant_variants[variant][0]
 
-    cache: dict[str, dict] = {}
 
-    def get(variant: str) -> dict:
-        if variant not in cache:
-            cache[variant] = run(plant_logs(variant)).result
-        return cache[variant]
-
-    return get
+@pytest.fixture(scope="session")
+def diagnosed(plant_variants):
+    """``get(variant) -> result dict``: the default diagnosis (every library effect) of a variant."""
+    return lambda variant: plant_variants[variant][1]
 
 
 @pytest.fixture

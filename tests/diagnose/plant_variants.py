@@ -1,0 +1,30 @@
+"""The plant variants the diagnose tests record, and their recording and diagnosis (run in worker processes)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
+PLANT = "components.plant.params"
+DURATION_S = 40
+
+VARIANTS = {
+    "plain": [],
+    "background_flow": [f"{PLANT}.background_flow_on=true", f"{PLANT}.flow_x=0.003"],
+    "wall_drag": [f"{PLANT}.wall_drag_on=true", f"{PLANT}.wall_drag_length=0.008", f"{PLANT}.wall_drag_gain=3"],
+    "gradient_force": [f"{PLANT}.gradient_force_on=true", f"{PLANT}.gradient_force_scale=3"],
+    "quadratic_drag": [f"{PLANT}.quadratic_drag_on=true"],
+}
+
+
+def record_and_diagnose(job):
+    """(variant, log paths, diagnosis result) of one variant: its four logs recorded into ``root``."""
+    variant, root = job
+    from cosim.identify.diagnose import run as diagnose
+    from cosim.runner import RunRequest, run
+
+    out = Path(root) / variant
+    run(RunRequest(SCENARIO, out, [f"duration_s={DURATION_S}", *VARIANTS[variant]], progress=False))
+    logs = sorted(out.glob("runs/*/log.csv"))
+    return variant, logs, diagnose(logs).result
