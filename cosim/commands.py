@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import json
+import os
+import re
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 from cosim.errors import UserError
@@ -39,8 +42,12 @@ def add_commands(sub) -> None:
     p = sub.add_parser("plugins", help="list registered components, paths, models and effects")
     p.set_defaults(func=cmd_plugins)
 
-    p = sub.add_parser("replay", help="open a run's recording in the rerun viewer")
+    p = sub.add_parser("replay", help="open a run's recording in the rerun viewer (--web: in a browser)")
     p.add_argument("run_dir", type=Path, help="a run's output folder (or an .rrd file)")
+    p.add_argument("--web", action="store_true",
+                   help="serve rerun's web viewer instead of opening a window (no display needed; open the "
+                        "address it prints in a browser, through an SSH tunnel from another machine)")
+    p.add_argument("--port", type=int, default=9090, help="the web viewer's HTTP port with --web (default 9090)")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
@@ -127,8 +134,9 @@ def cmd_plugins(args) -> int:
         entries = registry(kind)
         print(f"{kind}s:")
         for name, obj in sorted(entries.items()):
-            doc = (getattr(obj, "__doc__", None) or "").strip().splitlines()
-            print(f"  {name:24s} {doc[0] if doc else ''}")
+            doc = " ".join((getattr(obj, "doc", None) or getattr(obj, "__doc__", None) or "").split())
+            first = re.split(r"\.\s+(?=[A-Z])", doc, maxsplit=1)[0].rstrip(".") + "." if doc else ""
+            print(textwrap.fill(first, width=110, initial_indent=f"  {name:24s} ", subsequent_indent=" " * 27))
     return 0
 
 
@@ -139,8 +147,24 @@ def cmd_replay(args) -> int:
     viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     if not Path(viewer).exists():
         raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
+    if args.web:
+        print(f"serving {rrd} in rerun's web viewer on port {args.port}: open the http address below in a "
+              "browser (Ctrl-C stops)", flush=True)
+        return _call_viewer([viewer, "--serve-web", "--web-viewer-port", str(args.port), str(rrd)])
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UserError(f"no display to open the viewer on ($DISPLAY and $WAYLAND_DISPLAY are unset): "
+                        f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
+                        f"`rerun rrd stats {rrd}` lists what the recording holds")
     print(f"opening {rrd} in the rerun viewer")
-    return subprocess.call([viewer, str(rrd)])
+    return _call_viewer([viewer, str(rrd)])
+
+
+def _call_viewer(command: list[str]) -> int:
+    """Run the viewer until it ends; Ctrl-C ends it (and is not an error)."""
+    try:
+        return subprocess.call(command)
+    except KeyboardInterrupt:
+        return 0
 
 
 def cmd_node(args) -> int:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import platform
 import sys
 import time
 from pathlib import Path
@@ -128,12 +129,20 @@ def _trajectory_plots(key: str, out_dir: Path) -> list[str]:
         for row, (i, j) in enumerate(((0, 1), (0, 2))):
             ax = axes[row][col]
             ax.plot(path[:, i], path[:, j], "k--", lw=1, label="path")
-            ax.plot(truth[:, i], truth[:, j], lw=0.8, label="swimmer")
-            ax.set_aspect("equal")
+            ax.plot(truth[:, i], truth[:, j], lw=0.8, label="swimmer (true position)")
+            if row == 0:
+                ax.set_aspect("equal", adjustable="datalim")
+            else:  # a flat path would squash a side view drawn to scale: show at least +-15 mm of height
+                mid = 0.5 * (truth[:, j].min() + truth[:, j].max())
+                half = max(15.0, 0.6 * (truth[:, j].max() - truth[:, j].min()))
+                ax.set_ylim(mid - half, mid + half)
             ax.set_xlabel(f"{'xyz'[i]} [mm]")
             ax.set_ylabel(f"{'xyz'[j]} [mm]")
-        axes[0][col].set_title(run_dir.name.split("_", 1)[-1])
+            ax.tick_params(labelsize=8)
+        axes[0][col].set_title(f"{run_dir.name.split('_', 1)[-1]}: top view (x-y)", fontsize=9)
+        axes[1][col].set_title("side view (x-z)", fontsize=9)
     axes[0][0].legend(fontsize=8)
+    fig.suptitle(f"{key}: each controller's path (simulation, the paper's Fig. 3/7 analog)", fontsize=10)
     fig.tight_layout()
     target = out_dir / "plots" / f"paths_{key}.png"
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -170,7 +179,7 @@ def reproduce(out_dir: Path, quick: bool = False) -> dict:
     results["dataset"] = {s: [str(p) for p in getattr(results["dataset"], s)]
                           for s in ("training", "test", "validation")}
     report = {"quick": quick, "wall_time_s": round(time.perf_counter() - wall0, 1), "step_time_s": timings,
-              "paper": PAPER, "ours": results}
+              "machine": {"cpus": os.cpu_count(), "platform": platform.platform()}, "paper": PAPER, "ours": results}
     (out_dir / "report.json").write_text(json.dumps(report, indent=2, default=str) + "\n")
     markdown = report_format.markdown(report)
     (out_dir / "report.md").write_text(markdown)

@@ -124,7 +124,7 @@ def _run_sweep(scenario: Scenario, request: RunRequest, stop: StopRequest) -> di
     threshold = scenario.report.threshold_mm
     if threshold:
         summary["largest_below_threshold"] = largest_below(rows, threshold)
-    summary["plots"] = [p.name for p in sweep_plot(rows, request.out_dir, threshold)]
+    summary["plots"] = [p.name for p in sweep_plot(rows, request.out_dir, threshold, scenario.name)]
     _write_json(request.out_dir / "summary.json", summary)
     (request.out_dir / "summary.md").write_text(table)
     if not request.progress:  # --quiet

@@ -118,8 +118,23 @@ def largest_below(rows: list[dict], threshold_mm: float) -> list[dict]:
     return out
 
 
-def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = None) -> list[Path]:
-    """One PNG per numeric axis: mean tracking error against it, a line per group of other labels."""
+UNIT_SUFFIXES = {"_s": "s", "_ms": "ms", "_mm": "mm", "_m": "m", "_hz": "Hz", "_px": "px", "_deg": "deg"}
+STYLES = [("o", "-"), ("s", "--"), ("^", "-."), ("D", ":"), ("v", "-"), ("P", "--"), ("X", "-.")]
+
+
+def axis_label(name: str) -> str:
+    """A sweep axis as an axis label with its unit: ``interval_s`` -> ``interval [s]``."""
+    for suffix, unit in UNIT_SUFFIXES.items():
+        if name.lower().endswith(suffix):
+            return f"{name[: -len(suffix)].replace('_', ' ')} [{unit}]"
+    return name.replace("_", " ")
+
+
+def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = None, title: str = "") -> list[Path]:
+    """One PNG per numeric axis: mean tracking error against it, a line per group of other labels.
+
+    Lines differ in marker and dash and are drawn from the largest marker down, so coinciding lines stay visible.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -129,14 +144,17 @@ def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = Non
     for axis in numeric_axes(rows):
         others, groups = _groups(rows, axis)
         fig, ax = plt.subplots(figsize=(7, 4.5))
-        for key, members in groups.items():
+        for i, (key, members) in enumerate(groups.items()):
             x = [r[axis] for r in members]
             y = [(r.get("tracking_error_mm") or {}).get("mean", np.nan) for r in members]
-            ax.plot(x, y, marker="o", label=", ".join(f"{k}={v}" for k, v in zip(others, key)) or "run")
+            marker, dash = STYLES[i % len(STYLES)]
+            ax.plot(x, y, marker=marker, ls=dash, ms=max(9 - 1.5 * i, 3), mfc="none" if i % 2 else None,
+                    label=", ".join(f"{k}={v}" for k, v in zip(others, key)) or "run")
         if threshold_mm:
             ax.axhline(threshold_mm, color="k", ls="--", lw=1, label=f"{threshold_mm:g} mm")
-        ax.set_xlabel(axis)
+        ax.set_xlabel(axis_label(axis))
         ax.set_ylabel("mean tracking error [mm]")
+        ax.set_title(f"{title + ': ' if title else ''}mean tracking error against {axis_label(axis)}", fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         fig.tight_layout()

@@ -16,3 +16,16 @@ def toy_plugins():
     plugins.load_plugin_file(Path(__file__).parent / "core" / "toy_plugins.py")
     yield
     plugins.reset()
+
+
+
+@pytest.fixture
+def saved_figures(monkeypatch):
+    """{file name: figure_labels(fig)} of every matplotlib figure saved while the test runs."""
+    from matplotlib.figure import Figure
+
+    from figure_checks import spy_on_savefig
+
+    seen: dict = {}
+    monkeypatch.setattr(Figure, "savefig", spy_on_savefig(Figure.savefig, seen))
+    return seen

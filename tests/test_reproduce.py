@@ -7,9 +7,10 @@ import re
 
 from cosim.cli import main
 from cosim.report_format import filled
+from figure_checks import assert_labelled
 
 
-def test_quick_reproduction_fills_every_table(tmp_path, monkeypatch, capsys):
+def test_quick_reproduction_fills_every_table(tmp_path, monkeypatch, capsys, saved_figures):
     out = tmp_path / "report"
     assert main(["reproduce", "--quick", "--out", str(out)]) == 0
     md = (out / "report.md").read_text()
@@ -26,3 +27,6 @@ def test_quick_reproduction_fills_every_table(tmp_path, monkeypatch, capsys):
     assert report["quick"] is True and report["wall_time_s"] > 0
     assert "<table>" in (out / "report.html").read_text()
     assert list((out / "runs").rglob("recording.rrd"))
+    assert any(name.startswith("paths_") for name in saved_figures)
+    assert_labelled(saved_figures)
+    assert "on this 2-core machine" not in md and f"{report['machine']['cpus']}-CPU machine" in md

@@ -83,10 +83,12 @@ class Diagnosis:
     starts: np.ndarray  # evaluation windows on all logs
     lead: int
     steps: dict
-    errors: dict  # {"baseline": (w, 3), "after": (w, 3) or None} at the reference horizon, all logs
+    errors: dict  # {"baseline": (w, 3), "after": (w, 3) or None, "after_label"} at the reference horizon, all logs
+    #             ("after": with the --add effects, else with the effect the verdict names)
     features: dict
     curves: dict  # {label: {horizon: mean error on held-out}} for the before/after plot
     discovered_source: str | None = None  # discovered_effect.py, when a form was discovered
+    added_model: JointModel | None = None  # with --add: the reference model with the added effects, refitted
 
 
 def run(log_paths, validate_paths=(), settings: Settings | None = None, progress=None) -> Diagnosis:
@@ -144,7 +146,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                                    for h in steps}}
         reference, ref_ev, ref_sum = after.model, after_ev, after_sum
         fitted.append(reference)
-    ranking = []
+    ranking, cand_models = [], {}
     for effect in candidates:
         say(f"candidate {effect.name} ...")
         cand = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None)
@@ -152,6 +154,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         ranking.append(_rank_entry(effect, cand, ev, summ, ref_ev, ref_sum, s.reference, test_starts,
                                    max(1, int(round(VERDICT_BLOCK_S / dt)))))
         fitted.append(cand.model)
+        cand_models[effect.name] = cand.model
         say(f"  {effect.name}: " + (f"{ranking[-1]['reduction']:+.1%} at {s.reference} s" if ranking[-1]["identifiable"]
                                     else "not identifiable from these logs"))
     ranking.sort(key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)
@@ -195,9 +198,14 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         curves[f"+ {ranking[0]['effect']} (best)"] = ranking[0]["rollout_mm"]
     if (result.get("discovered") or {}).get("status") == "found" and not added_out:
         curves["+ discovered"] = result["discovered"]["rollout_mm"]
+    named = result["verdict"]["effect"]
+    if after is None and named in cand_models:  # the plots show the error with the named effect too
+        after_all = cand_models[named].evaluate(tall, all_starts, lead, ref_steps)[s.reference]["err"]
+    after_label = (f"+ {' + '.join(s.add)}" if after else f"+ {named} (named)") if after_all is not None else None
     return Diagnosis(result=result, timeline=tall, starts=all_starts, lead=lead, steps=steps,
-                     errors={"baseline": err_all, "after": after_all}, features=features, curves=curves,
-                     discovered_source=source)
+                     errors={"baseline": err_all, "after": after_all, "after_label": after_label},
+                     features=features, curves=curves,
+                     discovered_source=source, added_model=after.model if after else None)
 
 
 def _left_above_floor(result: dict, key: str) -> bool:

@@ -246,3 +246,50 @@ def split_kinds(effects) -> tuple[list[Effect], list[Effect], list[Effect]]:
     for e in effects:
         kinds[getattr(e, "kind", "force")].append(e)
     return kinds["force"], kinds["input"], kinds["sensor"]
+
+
+# ---------------------------------------------------------------- effects inside model files
+
+USER_MODULE_PREFIX = "cosim_user_plugin_"  # the module names cosim.plugins.load_plugin_file gives user files
+
+
+def effect_sources(effects) -> dict[str, str]:
+    """{effect name: source text of the file that defined it} for effects loaded from users' files.
+
+    A model file keeps these so it opens where that file is not at hand (a
+    node's process, another machine); built-in effects need no source.
+    """
+    import inspect
+    import sys
+
+    out = {}
+    for e in effects:
+        fn = getattr(e, "force", None) or getattr(e, "transform", None)
+        module = sys.modules.get(getattr(fn, "__module__", "") or "")
+        if module is not None and module.__name__.startswith(USER_MODULE_PREFIX):
+            out[e.name] = inspect.getsource(module)
+    return out
+
+
+def restore_effects(names, sources: dict) -> list[Effect]:
+    """The registered effects ``names``; those not registered are loaded from ``sources`` (see
+    :func:`effect_sources`) through a file under the temporary folder named by the text's hash."""
+    import hashlib
+    import tempfile
+
+    known = known_effects()
+    for name in names:
+        if name in known or name not in sources:
+            continue
+        text = sources[name]
+        path = Path(tempfile.gettempdir()) / "cosim-effects" / f"{hashlib.sha256(text.encode()).hexdigest()[:16]}.py"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.is_file():
+            path.write_text(text)
+        load_effect_files([path])
+        known = known_effects()
+    missing = [n for n in names if n not in known]
+    if missing:
+        raise UserError(f"the model uses effects {missing} that are not registered and whose source the model "
+                        "file does not hold: load their effect file first (--effects-file)")
+    return [known[n] for n in names]

@@ -31,20 +31,30 @@ def resolve_names(spec: str | list[str]) -> list[str]:
     return list(dict.fromkeys(items))
 
 
-def make_model(name: str, seed: int | None = None):
-    """Instantiate a registered model, passing ``seed`` when it takes one."""
+def takes_effects(name: str) -> bool:
+    """True if the registered model ``name`` can include force effects (its constructor takes ``terms``)."""
+    return "terms" in inspect.signature(lookup("model", name).__init__).parameters
+
+
+def make_model(name: str, seed: int | None = None, effects=()):
+    """Instantiate a registered model, passing ``seed`` when it takes one and ``effects`` as its terms."""
     cls = lookup("model", name)
     kwargs = {}
     if seed is not None and "seed" in inspect.signature(cls.__init__).parameters:
         kwargs["seed"] = seed
+    if effects:
+        kwargs["terms"] = list(effects)
     return cls(**kwargs)
 
 
-def fit_models(dataset, names: list[str], seed: int | None = None, progress=None) -> dict:
-    """Fit each named model on ``dataset``; returns ``{name: fitted model}``."""
+def fit_models(dataset, names: list[str], seed: int | None = None, progress=None, effects=()) -> dict:
+    """Fit each named model on ``dataset``; returns ``{name: fitted model}``.
+
+    ``effects``: force effects the models that take them (:func:`takes_effects`) include and fit jointly.
+    """
     models = {}
     for name in names:
-        model = make_model(name, seed)
+        model = make_model(name, seed, effects if takes_effects(name) else ())
         model.progress = progress
         if progress:
             progress(f"fitting {name} ...")

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from cosim.errors import UserError
 from cosim.identify.effect import split_kinds
 
 DV = 1.0  # velocity perturbation for the sensitivities [mm/s]
@@ -73,6 +74,19 @@ class JointModel:
         start.update(host.params() if supports_effects(host) else {})
         start.update(base_params or {})
         self._set(np.array([start[n] for n in self.names], dtype=float))
+
+    def savable(self):
+        """The host model with the force effects in it and the fitted parameters: what a model file holds.
+
+        Input and sensor effects transform the logged timelines, which a model file cannot carry: a
+        UserError names them.
+        """
+        other = [f"{e.name} ({e.kind})" for e in (*self.inputs, *self.sensors)]
+        if other:
+            raise UserError(f"cannot save {', '.join(other)} into a model file: only force effects become part "
+                            "of the model the Kalman filter and the MPC use")
+        self._set(self.theta)
+        return self.host
 
     # ------------------------------------------------------------ parameters
 

@@ -139,8 +139,10 @@ def localise(features: dict, err: np.ndarray, horizon_means: dict | None = None,
     ranked = sorted(bins, key=lambda k: bins[k]["eta2"], reverse=True)
     clues = [_clue(name, bins[name]) for name in ranked[:max_clues] if bins[name]["eta2"] >= 0.02]
     if coherence >= 0.3:  # a strong common direction is the first clue
-        text = (f"the errors share a direction: the mean error vector ({_vec(mean_vec)}) mm is {coherence:.0%} "
-                "of the mean error size, a steady push (a drift of the water or a constant force) rather than noise")
+        text = (f"the errors share a direction: the mean error vector (predicted minus measured, "
+                f"{_vec(mean_vec)} mm) is {coherence:.0%} of the mean error size, a steady push (a drift of the "
+                "water or a constant force) rather than noise; the model falls behind it, so the push is along "
+                f"({_vec(-mean_vec / max(np.linalg.norm(mean_vec), 1e-12))})")
         clues.insert(0 if coherence >= 0.5 else len(clues), text)
     growth = _growth(horizon_means) if horizon_means else None
     if growth is not None:

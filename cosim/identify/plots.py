@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.identify.report import log_label
+
 ROLLOUT_S = 0.42
 ROLLOUT_EVERY_S = 0.5
 
@@ -35,6 +37,8 @@ def write_plots(models: dict, dataset, result: dict, out_dir, seconds: float = 2
     rows = min(n_first, int(round(seconds / dataset.dt_s)))
     t = np.arange(len(dataset.p)) * dataset.dt_s
     strips = {}
+    first = log_label(str(dataset.logs[0].path))
+    split = f", {result['split']} split" if result.get("split") else ""
     for name, model in models.items():
         idx = dataset.pair_index()
         idx = idx[idx + 1 < rows]
@@ -45,8 +49,9 @@ def write_plots(models: dict, dataset, result: dict, out_dir, seconds: float = 2
             ax.plot(t[idx + 1], pred[:, a], "-", lw=0.8, label=f"{name} one-step")
             ax.set_ylabel(f"{'xyz'[a]} [mm]")
         axes[0].legend(loc="upper right", fontsize=8)
-        axes[-1].set_xlabel("t [s]")
-        fig.suptitle(f"{name}: one-step prediction vs measurement ({dataset.logs[0].path})", fontsize=9)
+        axes[-1].set_xlabel("time in the log [s]")
+        fig.suptitle(f"{name}: one-step prediction vs measurement, first {rows * dataset.dt_s:g} s of {first}{split}",
+                     fontsize=9)
         files.append(_save(fig, out / f"one_step_{name}.png", plt))
         strips[name] = _rollouts(model, dataset, n_first)
         fig, ax = plt.subplots(figsize=(6, 6))
@@ -57,7 +62,8 @@ def write_plots(models: dict, dataset, result: dict, out_dir, seconds: float = 2
         ax.set_xlabel("x [mm]")
         ax.set_ylabel("y [mm]")
         ax.legend(fontsize=8)
-        ax.set_title(f"{name}: open-loop rollouts", fontsize=9)
+        ax.set_title(f"{name}: {ROLLOUT_S:g} s open-loop rollouts every {ROLLOUT_EVERY_S:g} s, top view of "
+                     f"{first}{split}", fontsize=9)
         files.append(_save(fig, out / f"rollouts_{name}.png", plt))
     files.append(_error_bars(result, out / "errors.png", plt))
     files.append(_rerun(models, dataset, strips, rows, out / "compare.rrd"))
@@ -97,7 +103,10 @@ def _error_bars(result: dict, path, plt):
         ax.bar(np.arange(len(keys)) + i * width, vals[i], width, label=n)
     ax.set_xticks(np.arange(len(keys)) + 0.4 - width / 2, keys)
     ax.set_yscale("log")
-    ax.set_ylabel("error norm [mm]")
+    ax.set_xlabel("prediction: one step, or open-loop rollout of the given horizon")
+    ax.set_ylabel("mean error norm [mm]")
+    split = f" ({result['split']} split)" if result.get("split") else ""
+    ax.set_title(f"prediction error per model on {len(result.get('logs', [])) or 'the'} logs{split}", fontsize=9)
     ax.legend(fontsize=8)
     return _save(fig, path, plt)
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from cosim.identify.fit import json_default
 from cosim.identify.localise import FEATURES
+from cosim.identify.wording import legend, params_text
 
 MAX_LOG_PLOTS = 6
 
@@ -68,6 +69,12 @@ def target_times(diag) -> tuple[np.ndarray, np.ndarray]:
     return diag.timeline.log[diag.starts], diag.timeline.t_s[rows]
 
 
+def log_label(path: str) -> str:
+    """A log's name that tells logs apart: ``runs/003_case=tilted/log.csv`` -> ``003_case=tilted/log.csv``."""
+    p = Path(path)
+    return f"{p.parent.name}/{p.name}" if p.parent.name else p.name
+
+
 def _ref_key(diag) -> str:
     ref = diag.result["reference_horizon_s"]
     return next(k for k, v in diag.result["horizons_s"].items() if v == ref)
@@ -82,17 +89,18 @@ def _plot_time(diag, plt):
     floor = diag.result["noise_floor_mm"]
     for ax, k in zip(axes[:, 0], ids):
         sel = logs == k
-        for label, err, color in (("baseline", diag.errors["baseline"], "tab:red"),
-                                  ("with added effects", diag.errors.get("after"), "tab:blue")):
+        for label, err, color in ((f"{diag.result['baseline']['model']} (baseline)", diag.errors["baseline"], "tab:red"),
+                                  (diag.errors.get("after_label"), diag.errors.get("after"), "tab:blue")):
             if err is not None:
                 ax.plot(t[sel], np.linalg.norm(err[sel], axis=1), ".", ms=2, color=color, label=label)
         if floor:
             ax.axhline(floor, color="k", lw=0.8, ls="--", label="noise floor")
         ax.set_ylabel("error [mm]")
-        ax.set_title(Path(diag.result["logs"][k]).parent.name or f"log {k}", fontsize=8, loc="left")
+        ax.set_title(log_label(diag.result["logs"][k]), fontsize=8, loc="left")
     axes[0, 0].legend(fontsize=7, loc="upper right")
     axes[-1, 0].set_xlabel("time in log [s]")
-    fig.suptitle(f"open-loop error at {diag.result['reference_horizon_s']:g} s over time", fontsize=10)
+    fig.suptitle(f"open-loop prediction error at {diag.result['reference_horizon_s']:g} s over time, each log "
+                 "(all windows: training and held-out)", fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -111,9 +119,10 @@ def _plot_features(diag, plt):
         edges = np.asarray(b["edges"])
         ax.bar(0.5 * (edges[:-1] + edges[1:]), b["mean_mm"], width=np.diff(edges) * 0.9, color="tab:orange")
         ax.axhline(overall, color="k", lw=0.8, ls="--")
-        unit = FEATURES[name][0]
-        ax.set_title(f"{name} (eta2 {b['eta2']:.2f})", fontsize=8)
-        ax.set_xlabel(unit, fontsize=7)
+        unit, words = FEATURES[name]
+        ax.set_title(f"{name} (eta^2 {b['eta2']:.2f})", fontsize=8)
+        ax.set_xlabel(f"{words} [{unit}]" if unit else f"{words} [-]", fontsize=7)
+        ax.set_ylabel(f"mean error at {diag.result['reference_horizon_s']:g} s [mm]", fontsize=7)
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(names):]:
         ax.axis("off")
@@ -137,6 +146,8 @@ def _plot_ranking(diag, plt):
         ax.axvline(r["noise_floor_mm"], color="k", ls="--", lw=0.8, label="noise floor")
         ax.legend(fontsize=7)
     ax.set_xlabel(f"held-out error at {r['reference_horizon_s']:g} s [mm]")
+    ax.set_ylabel("model refitted with")
+    ax.set_title("candidate effects ranked (green: the one the verdict names)", fontsize=9)
     fig.tight_layout()
     return fig
 
@@ -148,8 +159,9 @@ def _plot_before_after(diag, plt):
         keys = [k for k in hs if curve.get(k) is not None]
         style = "k--" if label == "noise floor" else "o-"
         ax.plot([hs[k] for k in keys], [curve[k] for k in keys], style, label=label)
-    ax.set_xlabel("horizon [s]")
+    ax.set_xlabel("prediction horizon [s]")
     ax.set_ylabel("held-out open-loop error [mm]")
+    ax.set_title("held-out error by horizon, before and after", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -183,7 +195,7 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
         a = r["added"]
         lines += [f"| + {' + '.join(a['effects'])} [mm] | " + " | ".join(_f(a["rollout_mm"][h]) for h in hs) + " |",
                   "| reduction | " + " | ".join(f"{a['reduction'][h]:.0%}" for h in hs) + " |", "",
-                  "Added effect parameters: " + _params(a["params"]) + "."]
+                  "Added effect parameters: " + params_text(a["params"]) + "."]
     lines += ["", "## Ranking of candidate effects (joint refit, held-out error)", "",
               f"| rank | effect | kind | error at {r['reference_horizon_s']:g} s [mm] | reduction | t | parameters |",
               "|---|---|---|---|---|---|---|"]
@@ -192,7 +204,7 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
             lines.append(f"| - | {e['effect']} | {e['kind']} | not identifiable from these logs | | | |")
             continue
         lines.append(f"| {i} | {e['effect']} | {e['kind']} | {_f(e['rollout_mm'][key])} | {e['reduction']:+.1%} "
-                     f"| {e['t_stat']:.1f} | {_params(e['params'])} |")
+                     f"| {e['t_stat']:.1f} | {params_text(e['params'])} |")
     if r.get("fit_notes"):
         lines += ["", "Notes on the fits:", ""] + [f"- {n}" for n in r["fit_notes"]]
     found = r.get("discovered")
@@ -214,6 +226,9 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
     lines += ["", "| group | features, strongest first (eta^2) |", "|---|---|"]
     for g, names in loc["groups"].items():
         lines.append(f"| {g} | " + ", ".join(f"{n} ({loc['bins'][n]['eta2']:.2f})" for n in names) + " |")
+    lines += ["", "## How to read this report", ""]
+    lines += [f"- **{line.split(':', 1)[0]}**:{line.split(':', 1)[1]}" for line in
+              legend(("held-out error", "noise floor", "reduction", "t", "eta^2", "mean error vector", "value ± std"))]
     lines += ["", "## Figures", ""] + [f"![{p[:-4]}]({p})" for p in pngs]
     lines += ["", "The recording `diagnosis.rrd` shows the measured trajectory coloured by the error "
               "(`rerun diagnosis.rrd`).", ""]
@@ -226,12 +241,6 @@ def _split_text(split: dict) -> str:
     if split["kind"] == "validate":
         return f"{split['validate_logs']} --validate log(s)"
     return f"every third {split['block_s']:g} s block of each log"
-
-
-def _params(params: dict) -> str:
-    return ", ".join(f"{n.split('.', 1)[-1]} = {p['value']:.4g} ± "
-                     f"{'?' if p['std'] is None else format(p['std'], '.2g')} {p['unit']}".rstrip()
-                     for n, p in params.items())
 
 
 def _f(v) -> str:

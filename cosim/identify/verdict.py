@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cosim.identify.wording import params_text
+
 MIN_REDUCTION = 0.10
 DISCOVERED_MARGIN = 0.3  # a discovered form is preferred when it cuts the best listed effect's error by this share
 NOTE_CONDITION = 1e8  # a scaled Jacobian's condition number beyond which the parameters are undetermined
@@ -77,14 +79,18 @@ def verdict(result: dict, key: str) -> dict:
                     f"from {err:.2f} to {left:.2f} mm ({best['reduction']:.0%}; t = {best['t_stat']:.1f}), "
                     + (f"{min(explained, 1.0):.0%} of the excess over the noise floor ({floor:.2f} mm). "
                        if floor is not None else "(no noise floor: the camera noise could not be estimated). ")
-                    + f"Fitted: {_params_text(best['params'])}.")
+                    + f"Fitted: {params_text(best['params'])}.")
             if floor is not None and left > (1 + AT_FLOOR) * floor:
                 text += (f" The remaining error is still {left / floor:.1f}x the noise floor: add it "
                          f"(--add {best['effect']}) and diagnose again to look for a second effect.")
+            text += (f" Next: --add {best['effect']} --save-model MODEL.npz saves the model with it, which the "
+                     "Kalman filter and the MPC take as their model (components.estimator.params.model=MODEL.npz).")
             return {"effect": best["effect"], "status": "explained", "explanation": prefix + text}
     if err is not None and floor is not None and err <= (1 + AT_FLOOR) * floor:
         text = (f"the model is at the noise floor: its held-out error at {horizon} is {err:.2f} mm against "
-                f"{floor:.2f} mm that a perfect model would show with this camera noise; no effect is needed.")
+                f"{floor:.2f} mm that a perfect model would show with this camera noise; no effect is needed. "
+                "Next: nothing to add for these logs; a smaller effect would show in longer logs, with less "
+                "camera noise, or in conditions these logs do not cover (other speeds, heights, spin rates).")
         return {"effect": None, "status": "noise_floor", "explanation": prefix + text}
     clues = result.get("localisation", {}).get("clues", [])
     best_text = (f" The best candidate, {best['effect']}, lowers it by {best['reduction']:.0%} "
@@ -105,7 +111,9 @@ def _discovered_text(result: dict, key: str) -> str:
     if not found:
         return " Next: --discover fits a sparse combination of candidate force terms to what is left."
     if found["status"] != "found":
-        return f" Discovery: {found['explanation']}."
+        return (f" Discovery: {found['explanation']}. Next: the clues say where the error grows; an effect of "
+                "that form written in a file (examples/my_effect.py shows how) is refitted with --effects-file "
+                "FILE --add NAME.")
     words = "; ".join(found["words"])
     return (f" Discovered form: {words}. Refitted with it, the held-out error at {key} s falls by "
             f"{found['reduction']:.0%} (t = {found['t_stat']:.1f}); it is written to {found['file']}: rename it, "
@@ -119,12 +127,6 @@ def _added_text(result: dict, key: str) -> str:
     before, after = added["before_mm"][key], added["rollout_mm"][key]
     return (f"With {' + '.join(added['effects'])} added, the held-out error at {key} s "
             f"went from {before:.2f} to {after:.2f} mm. For what remains: ")
-
-
-def _params_text(params: dict) -> str:
-    return ", ".join(f"{n.split('.', 1)[-1]} = {p['value']:.4g} +- "
-                     f"{'?' if p['std'] is None else format(p['std'], '.2g')} {p['unit']}".rstrip()
-                     for n, p in params.items())
 
 
 def fit_notes(result: dict) -> list[str]:

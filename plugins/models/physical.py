@@ -50,6 +50,7 @@ from scipy.optimize import least_squares
 
 from cosim.errors import UserError
 from cosim.identify.model import Model
+from cosim.identify.effect import effect_sources, restore_effects
 from cosim.identify.terms import ForceTerm, Param
 
 BASE_PARAMS = (  # scales: typical magnitudes for a mm-sized swimmer (tau_v ~ 0.03-0.5 s, 1-5 mm/s per Hz)
@@ -156,6 +157,13 @@ class PhysicalModel(Model):
             out += [replace(q, name=f"{term.name}.{q.name}") for q in term.params]
         return out
 
+    def _param_names(self) -> tuple[str, ...]:
+        """Names of :meth:`all_params`, remembered while the terms stay the same (the rollouts' hot path)."""
+        key = tuple(map(id, self.terms))
+        if getattr(self, "_names_key", None) != key:
+            self._names_key, self._names = key, tuple(q.name for q in self.all_params())
+        return self._names
+
     def set_params(self, params: dict) -> None:
         names = [p.name for p in self.all_params()]
         unknown = set(params) - set(names)
@@ -216,7 +224,7 @@ class PhysicalModel(Model):
         a = th[0] * f + th[3] * lift + th[5] * cent
         a[2] += th[4]
         if self.terms:
-            named = dict(zip((q.name for q in self.all_params()), th))
+            named = dict(zip(self._param_names(), th))
             for term in self.terms:
                 a += term.force(p.T, v_geo.T, f.T, _term_params(term, named)).T
         z = (s * h) * (th[1] * sin_a + th[2])
@@ -395,18 +403,13 @@ class PhysicalModel(Model):
     # ------------------------------------------------------------ files
 
     def _state(self):
-        meta = {"params": self.params(), "terms": [t.name for t in self.terms], "fit_info": self.fit_info}
+        meta = {"params": self.params(), "terms": [t.name for t in self.terms], "fit_info": self.fit_info,
+                "effect_sources": effect_sources(self.terms)}
         return meta, {"theta": self._theta}
 
     def _restore(self, meta, arrays):
         if meta["terms"]:
-            from cosim.plugins import registry
-
-            known = registry("effect")
-            missing = [n for n in meta["terms"] if n not in known]
-            if missing:
-                raise UserError(f"physical model uses effects {missing} that are not registered")
-            self.terms = [known[n] for n in meta["terms"]]
+            self.terms = restore_effects(meta["terms"], meta.get("effect_sources", {}))
         self._theta = np.asarray(arrays["theta"], dtype=float)
         self.fit_info = meta.get("fit_info", {})
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from cosim.summary import largest_below, sweep_plot, sweep_table
+from figure_checks import assert_labelled
 
 
 def row(interval, est, mean, status="ok"):
@@ -21,9 +22,12 @@ def test_largest_below_stops_at_the_first_value_over_the_threshold():
     assert got == {"none": 0.1, "kf": 0.2}
 
 
-def test_table_and_plot(tmp_path):
+def test_table_and_plot(tmp_path, saved_figures):
     table = sweep_table(ROWS)
     assert table.splitlines()[0].startswith("| interval_s | estimator | tracking error [mm]")
     assert "| 0.1 | kf | 2.00 ± 1.00 | 4.00 |" in table
-    files = sweep_plot(ROWS, tmp_path, 4.6)
+    files = sweep_plot(ROWS, tmp_path, 4.6, "fig6")
     assert [f.name for f in files] == ["sweep_interval_s.png"] and files[0].stat().st_size > 10_000
+    assert_labelled(saved_figures)
+    assert saved_figures["sweep_interval_s.png"]["axes"] == [("interval [s]", "mean tracking error [mm]")]
+    assert saved_figures["sweep_interval_s.png"]["title"].startswith("fig6: ")

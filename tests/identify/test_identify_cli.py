@@ -7,9 +7,10 @@ import json
 import pytest
 
 from cosim.cli import main
+from figure_checks import assert_labelled
 
 
-def test_fit_then_compare(small_logs, tmp_path, capsys):
+def test_fit_then_compare(small_logs, tmp_path, capsys, saved_figures):
     out = tmp_path / "models"
     code = main(["fit", *map(str, small_logs["train"]), "--model", "all", "--out", str(out), "--seed", "3"])
     assert code == 0
@@ -41,6 +42,8 @@ def test_fit_then_compare(small_logs, tmp_path, capsys):
     assert rrd[:3] == b"RRF" and len(rrd) > 1000
     assert (plots / "errors.png").is_file() and (plots / "one_step_physical.png").is_file()
     assert "rollout end error" in capsys.readouterr().out
+    assert_labelled(saved_figures)
+    assert "test split" in saved_figures["rollouts_physical.png"]["title"]
 
 
 def test_fit_single_model_and_errors(small_logs, tmp_path, capsys):

@@ -47,3 +47,33 @@ def test_wrong_kind_version_or_file(rich_data, tmp_path, monkeypatch):
         load_model(junk)
     with pytest.raises(UserError, match="does not exist"):
         load_model(tmp_path / "missing.npz")
+
+
+def test_a_model_with_an_effect_from_a_users_file_opens_without_that_file(tmp_path):
+    """The file's source travels inside the model: a fresh process (here: a reset plugin manager, the file moved
+    away) opens it and predicts the same; a built-in effect needs no source."""
+    import shutil
+    from pathlib import Path
+
+    from cosim import plugins
+    from cosim.identify.effect import load_effect_files, resolve
+
+    src = tmp_path / "swirl_effect.py"
+    shutil.copy(Path(__file__).parents[1] / "diagnose" / "data" / "swirl_effect.py", src)
+    plugins.reset()
+    try:
+        load_effect_files([src])
+        terms = resolve(["swirl", "background_flow"])
+        model = PhysicalModel.from_params({"k": 0.2, "Cd1": 0.07, "swirl.omega": 0.3, "background_flow.w_x": 2.0},
+                                          terms=terms)
+        path = model.save(tmp_path / "swirl.npz")
+        src.unlink()
+        plugins.reset()
+        loaded = load_model(path)
+        assert [t.name for t in loaded.terms] == ["swirl", "background_flow"]
+        x = np.array([[10.0, -20.0, 5.0, 1.0, 2.0, 0.0]])
+        u = np.array([[3.0, 0.0, 4.0]])
+        np.testing.assert_array_equal(loaded.predict(x, u, 0.02), model.predict(x, u, 0.02))
+        assert loaded.params()["swirl.omega"] == 0.3
+    finally:
+        plugins.reset()
