@@ -2,12 +2,13 @@
 
 A rig's controller logs its command when it sends it (here at 25 Hz, as a
 rotation axis and a spin frequency), and its tracker logs detections at the
-cameras' frame times (here 30 frames/s, in mm, about 5 % of the frames
-lost and missing from the file). This script writes both from a run folder
-of `cosim run` (its ``trace.npz``), so `cosim convert` has something real to
-convert; on a rig, export the same two files from its own logs.
+cameras' frame times (here 50 frames/s, 4 ms after the control ticks, in mm,
+about 5 % of the frames lost and missing from the file; ``--fps`` sets
+another rate). This script writes both from a run folder
+of `cosim run` (the applied commands of its ``log.csv``, the true positions
+of its ``trace.npz``), so `cosim convert` has something real to convert; on a rig, export the same two files from its own logs.
 
-    python examples/lab_recording.py RUN_DIR --out FOLDER   # FOLDER/commands.csv, FOLDER/detections.csv
+    python examples/lab_recording.py RUN_DIR --out FOLDER [--fps 50]   # FOLDER/commands.csv, detections.csv
 """
 
 from __future__ import annotations
@@ -17,17 +18,19 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.data import read_log
+
 COMMAND_HZ = 25.0
-FRAMES_HZ = 30.0
 LOST = 0.05
 NOISE_MM = 0.1
 
 
-def write_recording(run_dir: Path, out: Path, seed: int = 0) -> tuple[Path, Path]:
+def write_recording(run_dir: Path, out: Path, fps: float = 50.0, seed: int = 0) -> tuple[Path, Path]:
     """commands.csv (t_s, axis_x..z, freq_hz) and detections.csv (t_ms, x, y, z [mm]) in ``out``."""
+    log = read_log(run_dir / "log.csv")  # the command the coils applied, per control tick
+    t, omega = log.t_s, 2 * np.pi * log.omega_hz  # (n,) s, (n, 3) rad/s
     trace = np.load(run_dir / "trace.npz")
-    t, omega = trace["t_s"], trace["controller.omega"]  # (n,) s, (n, 3) rad/s
-    truth_mm = trace["plant.position"] * 1e3  # (n, 3)
+    truth_mm = np.column_stack([np.interp(t, trace["t_s"], trace["plant.position"][:, a] * 1e3) for a in range(3)])
     rng = np.random.default_rng(seed)
     out.mkdir(parents=True, exist_ok=True)
     cmd_t = np.arange(t[0], t[-1], 1 / COMMAND_HZ)
@@ -38,7 +41,7 @@ def write_recording(run_dir: Path, out: Path, seed: int = 0) -> tuple[Path, Path
     commands = out / "commands.csv"
     np.savetxt(commands, np.column_stack([cmd_t, axis, f_hz]), fmt="%.6f", delimiter=",",
                header="t_s,axis_x,axis_y,axis_z,freq_hz", comments="")
-    frame_t = np.arange(t[0] + 0.004, t[-1], 1 / FRAMES_HZ)
+    frame_t = np.arange(t[0] + 0.004, t[-1], 1 / fps)
     kept = frame_t[rng.random(len(frame_t)) >= LOST]
     p = np.column_stack([np.interp(kept, t, truth_mm[:, a]) for a in range(3)])
     p += NOISE_MM * rng.normal(size=p.shape)
@@ -52,9 +55,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run_dir", type=Path, help="a run folder of `cosim run` (holds trace.npz)")
     ap.add_argument("--out", type=Path, required=True, help="folder for commands.csv and detections.csv")
+    ap.add_argument("--fps", type=float, default=50.0, help="camera frame rate [1/s] (default 50)")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
-    for path in write_recording(args.run_dir, args.out, args.seed):
+    for path in write_recording(args.run_dir, args.out, args.fps, args.seed):
         print(f"wrote {path}")
 
 
