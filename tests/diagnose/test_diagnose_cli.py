@@ -81,7 +81,7 @@ def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagno
     for name, path in (("plain", tmp_path / "plain" / "physical.npz"), ("with_flow", with_flow)):
         out = tmp_path / name
         assert main(["run", str(ROOT / "scenarios" / "flow_kf_sweep.yaml"), "--out", str(out), "--quiet",
-                     "--set", "sweep={}", "--set", "duration_s=24", "--set", f"components.estimator.params.model={path}",
+                     "--set", "sweep={}", "--set", "duration_s=40", "--set", f"components.estimator.params.model={path}",
                      "--set", "components.camera.params.interval_s=1.5"]) == 0
         error[name] = json.loads((out / "summary.json").read_text())["tracking_error_mm"]["mean"]
     assert error["with_flow"] < 0.7 * error["plain"], error
