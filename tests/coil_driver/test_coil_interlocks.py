@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import re
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from coil_fakes import DT, RecordingReference, spin
 from cosim import ComponentError
@@ -15,6 +17,7 @@ from cosim_plugins.coil_driver.actuation import impedance_ohm
 from cosim_plugins.coil_driver.backends import Rig
 from cosim_plugins.coil_driver.interlocks import Limits, ThermalBudget, limit_scale
 from cosim_plugins.coil_driver.inverse import InverseMagnetics
+from cosim_plugins.coil_driver.params import PARAMS
 
 ROOT = Path(__file__).parents[2]
 
@@ -222,3 +225,12 @@ def test_cosim_validate_names_a_bad_backend_parameter_in_one_line(capsys, overri
     assert err.startswith("cosim validate: error: components.coil_driver.params (coil_driver.inverse): ")
     assert message in err and len(err.splitlines()) == 1
 
+
+def test_the_readme_lists_every_interlock_and_backend_parameter_with_its_default():
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## Running the real rig", 1)[1].split("\n## ", 1)[0]
+    rows = dict(re.findall(r"^\| `(\w+)` \| `([^`]*)` \|", section, flags=re.M))
+    actuation = {"field_mT", "turns", "r_inner_mm", "r_outer_mm", "z_near_mm", "thickness_mm", "r_ohm", "l_h",
+                 "c_f", "f_min_hz"}  # the driver's model of the coils, documented in its own module
+    assert set(rows) == set(PARAMS) - actuation
+    assert {key: yaml.safe_load(text) for key, text in rows.items()} == {key: PARAMS[key].default for key in rows}
