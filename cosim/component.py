@@ -63,6 +63,8 @@ class Component:
     #: Set to a message in ``step`` to stop the run cleanly after this step's
     #: outputs are published (e.g. the coil driver refusing a NaN command:
     #: it outputs zero field and sets ``fault``). The run records the fault.
+    #: Set in ``close`` (making the outputs safe failed, or a fault found
+    #: after the last step), it ends the run with status ``fault`` too.
     fault: str | None = None
 
     #: Set True to receive the scenario's path object as ``params["path"]``.
@@ -79,9 +81,9 @@ class Component:
 
     @classmethod
     def validate_params(cls, params: Mapping[str, Any]) -> None:
-        """Check the scenario's ``params`` cheaply, with no side effect (nothing trained,
-        nothing written); raise :class:`ComponentError`. Called by ``cosim validate`` and
-        before any component is set up, so bad input fails before a run starts."""
+        """Check the scenario's ``params`` (plus ``dt``) cheaply, with no side effect (nothing
+        trained, nothing written, no hardware opened); raise :class:`ComponentError`. Called by
+        ``cosim validate`` and before any component is set up, so bad input fails before a run starts."""
 
     def initial_outputs(self) -> dict[str, np.ndarray]:
         """Outputs before the first step (used by delayed edges at t = 0). Default: zeros."""
@@ -99,6 +101,8 @@ class Component:
         raise NotImplementedError
 
     def close(self) -> None:
-        """Release resources (files, FMU instances). Called once, also after a failure."""
+        """Release resources (files, FMU instances) and make outputs safe. Called at the end of
+        every run, also after a failure or a stop, before the recording is finished; may set
+        ``fault``. It must be idempotent."""
 
     # Optional: snapshot()/restore(state) for components that support rewinding.

@@ -12,7 +12,9 @@ callbacks (one lock around them; the main thread only waits):
   stamped for ``k`` have arrived: step, publish the outputs; a ``check``
   (set-up) asks which inputs' initial values have not arrived yet;
 * commands on ``cosim/{run}/ctl/{name}/cmd``: ``init`` (publish the initial
-  outputs), ``flush`` (report the steps held back, even none), ``stop``.
+  outputs), ``flush`` (report the steps held back, even none), ``stop``
+  (close the component and reply ``closed``, with the fault it set while
+  closing as ``close_fault``).
 
 The node also stops (closing its component, so a coil driver makes its
 outputs safe) when the scheduler's liveliness token goes (its process ended
@@ -211,10 +213,10 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
             status = 1
     finally:
         node.stopped.set()
-        token.undeclare()
         for sub in subs:
             sub.undeclare()
         if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
-            stepper.close()
+            reply(-1, "closed", close_fault=stepper.close())
+        token.undeclare()  # after the reply: the scheduler waits for it while the node lives
         session.close()
     return status

@@ -36,7 +36,8 @@ from cosim.placement import node_cpus
 from cosim.portcache import PortCache, PortStore
 from cosim.recorder import TraceRecorder
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
-from cosim.scheduler import WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest
+from cosim.scheduler import (WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest,
+                             with_close_faults)
 from cosim.stepper import Stepper, setup_component
 from cosim.summary import METRICS, largest_below, run_figures, sweep_plot, sweep_table
 from cosim.wiring import build_wiring
@@ -177,6 +178,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     procs: list[subprocess.Popen] = []
     group = scheduler = error = None
     completed = 0
+    late_faults: dict[str, str] = {}  # set by components closed here, after a failed set-up
     wall0 = time.perf_counter()
     try:
         if endpoint:
@@ -203,7 +205,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
         raise
     finally:
         if group is not None:  # closed already unless set-up failed
-            group.close(hung=None)
+            late_faults = group.close(hung=None)
         for proc in procs:
             try:
                 proc.wait(timeout=5)
@@ -213,6 +215,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
             cache.close()
         session.close()
     total_wall = time.perf_counter() - wall0
+    if late_faults:
+        error = with_close_faults(error, late_faults)
     recorder.finish(str(error) if error else None)  # a no-op unless set-up failed
     summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s if scheduler else 0.0, total_wall,
                        error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)

@@ -17,14 +17,16 @@ The loop runs in a worker thread while the calling thread watches it: a step
 that exceeds its timeout, raises, or whose node disappears (liveliness token
 gone) stops the run with the component's name; :class:`StopRequest`
 (Ctrl-C, SIGTERM) ends it after the tick under way. Either way the
-components are closed first (a coil driver makes its outputs safe), then the
-observers finish what they recorded. With a :class:`~cosim.pacing.Pacer`
+components are closed first (a coil driver makes its outputs safe; a fault it
+finds while doing so ends the run with status ``fault``), then the observers
+finish what they recorded. With a :class:`~cosim.pacing.Pacer`
 ticks follow the wall clock, and nodes are granted one tick at a time.
 """
 
 from __future__ import annotations
 
 import queue
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -132,13 +134,18 @@ class LocalGroup:
     def interrupt(self, name: str, reason: str) -> None:
         """A stuck local step cannot be woken; the worker thread is abandoned."""
 
-    def close(self, hung: str | None) -> None:
+    def close(self, hung: str | None) -> dict[str, str]:
+        """Close every component (once); returns ``{name: fault}`` of those that set a fault while closing."""
         if self.closed:
-            return
+            return {}
         self.closed = True
+        faults = {}
         for name, stepper in self.steppers.items():
             if name != hung:  # its thread is stuck inside step(); closing would block too
-                _close_quietly(name, stepper.close)
+                fault = _close_quietly(name, stepper.close)
+                if fault:
+                    faults[name] = fault
+        return faults
 
 
 #: Ticks a node may run ahead of the tick the scheduler waits for; credits
@@ -150,6 +157,9 @@ WINDOW = 32
 REPLY_BATCH = WINDOW // 2
 #: How long a timed-out run waits for the nodes' unreported steps before naming the hung one.
 FLUSH_GRACE_S = 0.25
+#: How long closing waits for the nodes to confirm that their components are closed (a coil
+#: driver ramps its outputs down and switches its supplies off, each of which may time out).
+CLOSE_TIMEOUT_S = 15.0
 
 
 class RemoteGroup:
@@ -326,24 +336,57 @@ class RemoteGroup:
             self._tick_pub.put(bus.encode_json({"until": self._granted}))
         self.gather(due, tick, None, progress)
 
-    def close(self, hung: str | None) -> None:
+    def close(self, hung: str | None) -> dict[str, str]:
+        """Stop every node (once) and wait until each has closed its component (at most
+        ``CLOSE_TIMEOUT_S``); returns ``{name: fault}`` of those that set a fault while closing."""
         if self.closed:
-            return
+            return {}
         self.closed = True
+        waiting = {n for n in self.names if n not in self._dead and n != hung}
         for name in self.names:
             if name not in self._dead:
                 _close_quietly(name, lambda n=name: self.command(n, "stop"))
+        faults: dict[str, str] = {}
+        deadline = time.monotonic() + CLOSE_TIMEOUT_S
+        gone: dict[str, float] = {}  # when a node still awaited was seen dead (its close reply may follow)
+        while waiting:
+            now = time.monotonic()
+            for name in waiting & self._dead:
+                gone.setdefault(name, now)
+            waiting -= {n for n, since in gone.items() if now - since > FLUSH_GRACE_S}
+            if waiting and now > deadline:
+                print(f"cosim: {', '.join(sorted(waiting))} did not confirm closing within {CLOSE_TIMEOUT_S:g} s",
+                      file=sys.stderr)
+                break
+            try:
+                reply = self._decode(self._inbox.get(timeout=0.05))
+            except queue.Empty:
+                continue
+            if reply.get("phase") == "closed":
+                waiting.discard(reply.get("name"))
+                if reply.get("close_fault"):
+                    faults[reply["name"]] = reply["close_fault"]
         for entity in (self._tick_pub, *self._cmd_pubs.values(), self._replies, self._alive):
             entity.undeclare()
+        return faults
 
 
-def _close_quietly(name: str, close: Callable[[], None]) -> None:
-    import sys
-
+def _close_quietly(name: str, close: Callable[[], str | None]) -> str | None:
     try:
-        close()
+        return close()
     except Exception as exc:  # closing must not hide the run's own outcome
         print(f"cosim: closing {name} failed: {exc}", file=sys.stderr)
+        return None
+
+
+def with_close_faults(error: BaseException | None, faults: dict[str, str]) -> RunFault:
+    """The run's outcome once components set ``faults`` while closing: a fault, naming each
+    (and the failure or fault the run had before, if any)."""
+    (name, fault), *others = faults.items()
+    text = "; ".join([f"{fault} (while closing)", *(f"component {n!r}: {f} (while closing)" for n, f in others)])
+    if error is not None:
+        text += f"; the run had stopped on: {error}"
+    return RunFault(name, text)
 
 
 class Scheduler:
@@ -380,7 +423,9 @@ class Scheduler:
             self._watch()
         faulted = isinstance(state.error, RunFault)  # its tick was recorded, as far as it went
         completed = state.tick + 1 if (faulted or not state.error) else state.tick
-        self.group.close(hung=state.hung)
+        close_faults = self.group.close(hung=state.hung)
+        if close_faults:
+            state.error = with_close_faults(state.error, close_faults)
         error = str(state.error) if state.error else None
         for obs in self.observers:
             obs.finish(error, error or self.stop.reason)

@@ -86,7 +86,11 @@ class Stepper:
             self._pubs[port].put(payload, attachment=attachment)
         self.last_outputs = list(values.values())
 
-    def close(self) -> None:
+    def close(self) -> str | None:
+        """Close the component; returns the fault it set while closing (see :class:`Component`), if any."""
         for pub in self._pubs.values():
             pub.undeclare()
+        before = self.component.fault
         self.component.close()
+        after = self.component.fault
+        return after if after and after != before else None

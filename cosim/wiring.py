@@ -81,7 +81,7 @@ def build_wiring(scenario: Scenario) -> Wiring:
             raise WiringError(f"components.{dst}.inputs: not wired: {', '.join(missing)}")
     for name, spec in scenario.components.items():
         try:
-            classes[name].validate_params(spec.params)
+            classes[name].validate_params({"dt": scenario.dt_s, **spec.params})
         except UserError as exc:
             raise WiringError(f"components.{name}.params ({spec.plugin}): {exc}") from None
     order = _topological_order(list(scenario.components), edges)

@@ -67,6 +67,20 @@ def test_failing_component_is_named_and_the_record_so_far_is_kept(tmp_path, mode
     assert (tmp_path / "recording.rrd").is_file() and (tmp_path / "trace.npz").is_file()
 
 
+@pytest.mark.parametrize("processes", [False, True])
+def test_a_fault_set_while_closing_is_the_run_outcome_named_in_summary_and_recording(tmp_path, processes):
+    from recording_checks import recorded_events
+
+    overrides = ["components.relay.params.mode=close_fault", "duration_s=0.5"]
+    with pytest.raises(RunError) as err:
+        run(RunRequest(FAULTY, tmp_path, overrides, processes=processes, progress=False))
+    expected = "component 'relay': fault: deliberate fault on close (while closing)"
+    assert str(err.value).startswith(expected)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "fault" and summary["error"] == expected and summary["steps"] == 25
+    assert recorded_events(tmp_path / "recording.rrd") == [expected]
+
+
 def test_a_failing_sweep_run_does_not_stop_the_others(tmp_path, capsys):
     from cosim.cli import main
 

@@ -38,7 +38,8 @@ class KinematicPlant(Component):
 
 
 class Faulty(Component):
-    """Passes position through; at ``fail_at_s`` raises, hangs, or ends its process (``mode``)."""
+    """Passes position through; at ``fail_at_s`` raises, hangs, or ends its process (``mode``);
+    or (``close_fault``) steps well and sets a fault when closed."""
 
     inputs = (Port("position", (3,), "m"),)
     outputs = (Port("position", (3,), "m"),)
@@ -46,8 +47,12 @@ class Faulty(Component):
     def setup(self, params, rng):
         self.fail_at, self.mode = params.get("fail_at_s", 1.0), params.get("mode", "raise")
 
+    def close(self):
+        if self.mode == "close_fault":
+            self.fault = "deliberate fault on close"
+
     def step(self, t, inputs):
-        if t >= self.fail_at:
+        if t >= self.fail_at and self.mode != "close_fault":
             if self.mode == "raise":
                 raise ComponentError("deliberate failure")
             if self.mode == "exit":

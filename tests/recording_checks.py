@@ -1,0 +1,17 @@
+"""Reading back what a run recorded: the events (faults and stops) of its rerun recording."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def recorded_events(rrd: Path) -> list[str]:
+    """The texts logged at ``events`` (faults and stops) in the rerun recording ``rrd``, in order."""
+    from rerun.chunk import RrdReader
+
+    texts = []
+    for chunk in RrdReader(rrd).stream():
+        if chunk.entity_path == "/events":
+            for row in chunk.to_record_batch().column("TextLog:text").to_pylist():
+                texts.extend(row)
+    return texts
