@@ -2,7 +2,8 @@
 
 Each command lives in its own module with ``add_commands(subparsers)``,
 which adds its subparser(s) and sets ``func`` to a callable taking the
-parsed arguments and returning an exit code.
+parsed arguments and returning an exit code. Plugins add theirs the same
+way through the ``cosim_register_commands`` hook (e.g. ``cosim camera``).
 """
 
 from __future__ import annotations
@@ -31,11 +32,22 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMAND_MODULES:
         importlib.import_module(name).add_commands(sub)
+    from cosim.plugins import command_groups
+
+    for add_commands in command_groups():
+        add_commands(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        parser = build_parser()
+    except Exception as exc:  # a plugin that fails to load or register its commands
+        if _is_user_error(exc):
+            print(f"cosim: error: {exc}", file=sys.stderr)
+            return 2
+        raise
+    args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

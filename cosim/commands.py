@@ -61,6 +61,8 @@ def add_commands(sub) -> None:
                    help="endpoint the nodes started after this one connect to, e.g. tcp/0.0.0.0:7448")
     p.add_argument("--cpus", default=None, metavar="LIST",
                    help="run on these CPUs (e.g. 1 or 0,2-3) under SCHED_BATCH (see cosim.placement)")
+    p.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
+                   help="the run's output folder, for a component that writes files of its own")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.set_defaults(func=cmd_node)
 
@@ -144,19 +146,22 @@ def cmd_replay(args) -> int:
     rrd = args.run_dir / "recording.rrd" if args.run_dir.is_dir() else args.run_dir
     if not rrd.is_file():
         raise UserError(f"no recording at {rrd}")
+    # the parts components recorded themselves (recording.<component>.rrd): one recording in the viewer
+    parts = sorted(args.run_dir.glob("recording.*.rrd")) if args.run_dir.is_dir() else []
+    files = [str(rrd), *map(str, parts)]
     viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     if not Path(viewer).exists():
         raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
     if args.web:
         print(f"serving {rrd} in rerun's web viewer on port {args.port}: open the http address below in a "
               "browser (Ctrl-C stops)", flush=True)
-        return _call_viewer([viewer, "--serve-web", "--web-viewer-port", str(args.port), str(rrd)])
+        return _call_viewer([viewer, "--serve-web", "--web-viewer-port", str(args.port), *files])
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise UserError(f"no display to open the viewer on ($DISPLAY and $WAYLAND_DISPLAY are unset): "
                         f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
                         f"`rerun rrd stats {rrd}` lists what the recording holds")
-    print(f"opening {rrd} in the rerun viewer")
-    return _call_viewer([viewer, str(rrd)])
+    print(f"opening {', '.join(files)} in the rerun viewer")
+    return _call_viewer([viewer, *files])
 
 
 def _call_viewer(command: list[str]) -> int:
@@ -177,7 +182,7 @@ def cmd_node(args) -> int:
         raise UserError(f"no component {args.component!r} in {args.scenario} "
                         f"(have: {', '.join(scenario.components)})")
     return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen,
-                 args.cpus)
+                 args.cpus, args.run_dir)
 
 
 def add_dataset_command(sub) -> None:

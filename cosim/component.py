@@ -69,14 +69,21 @@ class Component:
 
     #: Set True to receive the scenario's path object as ``params["path"]``.
     uses_path: bool = False
+    #: Set True to receive the run's output folder as ``params["run_dir"]`` (a
+    #: :class:`pathlib.Path`, or None when the component runs outside a run), the
+    #: id of the run's rerun recording as ``params["recording_id"]`` and its own name
+    #: in the scenario as ``params["name"]``: for files of its own (a video of its
+    #: frames, its part of the recording), written as the run goes.
+    uses_run_dir: bool = False
 
     def setup(self, params: Mapping[str, Any], rng: np.random.Generator) -> None:
         """Validate ``params`` (raise :class:`ComponentError` naming the bad one) and initialise.
 
         ``params`` holds the scenario's parameters for this component plus
-        ``dt`` (the scenario step [s]) and, when ``uses_path`` is set,
-        ``path`` (a :class:`cosim.paths.Path`). ``rng`` is private to the
-        component and seeded from the scenario seed and the component name.
+        ``dt`` (the scenario step [s]), when ``uses_path`` is set ``path`` (a
+        :class:`cosim.paths.Path`), and when ``uses_run_dir`` is set ``run_dir``,
+        ``recording_id`` and ``name``. ``rng`` is private to the component and seeded
+        from the scenario seed and the component name.
         """
 
     @classmethod
@@ -84,6 +91,20 @@ class Component:
         """Check the scenario's ``params`` (plus ``dt``) cheaply, with no side effect (nothing
         trained, nothing written, no hardware opened); raise :class:`ComponentError`. Called by
         ``cosim validate`` and before any component is set up, so bad input fails before a run starts."""
+
+    @classmethod
+    def recording_views(cls, name: str) -> list:
+        """rerun blueprint views (``rerun.blueprint`` views) this component, named ``name`` in
+        the scenario, adds to the run's recording layout, for what it logs itself (see
+        :func:`cosim.rerun_log.component_recording`). Default: none."""
+        return []
+
+    @classmethod
+    def summary_figures(cls, outputs: Mapping[str, np.ndarray]) -> dict[str, Any]:
+        """Figures for the run's ``summary.json``, from this component's recorded outputs
+        (``{port: (ticks, *port shape)}``, SI units, NaN where a port had no value). The keys
+        join the summary's top level and must not reuse the framework's. Default: none."""
+        return {}
 
     def initial_outputs(self) -> dict[str, np.ndarray]:
         """Outputs before the first step (used by delayed edges at t = 0). Default: zeros."""

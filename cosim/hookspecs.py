@@ -58,3 +58,14 @@ def cosim_register_effects(register):
     :class:`cosim.identify.effect.Effect` (name, parameters with initial
     values and bounds, a vectorised force or input/sensor transform).
     """
+
+
+@hookspec
+def cosim_register_commands(register):
+    """Provide ``cosim`` subcommands.
+
+    Call ``register(add_commands)`` for each group, where ``add_commands(subparsers)``
+    adds argparse parsers to the ``cosim`` command's subparsers and sets ``func``
+    on each to a callable taking the parsed arguments and returning an exit code
+    (the contract of :mod:`cosim.cli`'s own command modules).
+    """

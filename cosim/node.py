@@ -34,6 +34,7 @@ import signal
 import sys
 import threading
 import time
+from pathlib import Path
 
 import zenoh
 
@@ -145,12 +146,13 @@ class _Node:
 
 
 def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str],
-          listen: list[str], cpus: str | None = None) -> int:
+          listen: list[str], cpus: str | None = None, run_dir: Path | None = None) -> int:
     """Serve component ``name`` until told to stop; returns an exit status.
 
     ``connect``: the scheduler's endpoint and those of the nodes started
     before this one; ``listen``: where the nodes started after it connect;
-    ``cpus``: where to step (see :mod:`cosim.placement`), once set up on any CPU.
+    ``cpus``: where to step (see :mod:`cosim.placement`), once set up on any CPU;
+    ``run_dir``: the run's output folder, for a component that writes files of its own.
     """
     if cpus is not None:
         parse_cpu_list(cpus)  # a bad list fails before anything starts
@@ -166,7 +168,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         reply_pub.put(payload, attachment=attachment)
 
     try:
-        component = setup_component(scenario, wiring, name)
+        component = setup_component(scenario, wiring, name, run_dir)
         if cpus is not None:  # the threads started from here on (subscribers') inherit it
             pin_this_process(cpus)
     except Exception as exc:  # reported to the scheduler, which names us

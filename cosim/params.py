@@ -13,7 +13,7 @@ from typing import Any, Mapping
 from cosim.component import ComponentError
 
 #: Parameters every component receives from the scheduler.
-CONTEXT_KEYS = ("dt", "path")
+CONTEXT_KEYS = ("dt", "path", "run_dir", "recording_id", "name")
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """The one plugin manager: built-ins and external plugins registered alike.
 
 Kinds of things plugins provide (see :mod:`cosim.hookspecs`): components,
-paths, models, effects. ``registry(kind)`` returns ``{name: object}``.
+paths, models, effects. ``registry(kind)`` returns ``{name: object}``;
+``command_groups()`` the CLI commands plugins add.
 External plugins come from the ``cosim`` entry-point group, or from a Python
 file loaded with :func:`load_plugin_file`.
 """
@@ -93,6 +94,13 @@ def registry(kind: str) -> dict[str, Any]:
         owners[name] = getattr(obj, "__module__", "?")
 
     hook(register=register)
+    return found
+
+
+def command_groups() -> list:
+    """The ``add_commands(subparsers)`` callables plugins register (see :mod:`cosim.hookspecs`)."""
+    found: list = []
+    get_plugin_manager().hook.cosim_register_commands(register=found.append)
     return found
 
 

@@ -11,7 +11,10 @@ wall time:
   ``trace.part.json``), turned into ``trace.npz`` when the run ends (the full
   trace: ``t_s`` plus one array per ``component.port``, shape
   (ticks, *port shape), SI units) and then removed;
-* ``recording.rrd``: the rerun recording (see :mod:`cosim.rerun_log`).
+* ``recording.rrd``: the rerun recording (see :mod:`cosim.rerun_log`); a
+  component that logs images or the like itself writes its part next to it
+  (``recording.<component>.rrd``, the same recording id), and its views join
+  the layout here.
 
 So a run stopped, failed or killed keeps what it recorded: a killed
 process loses at most the last batch; :func:`load_trace` reads a
@@ -47,6 +50,8 @@ class TraceRecorder:
         self.closed = False
         self.files: dict[str, Path] = {}
         self.tracking_error_m = np.full(n, np.nan)  # (n,) distance of truth to path [m], as far as drawn
+        #: the layout's views the components add for what they log themselves
+        self.views = [v for c in wiring.order for v in wiring.classes[c].recording_views(c)]
         self._batch_ticks = max(int(round(FLUSH_EVERY_S / scenario.dt_s)), 1)
         self._last_write = time.monotonic()
         self._log = self._part = self._rrd = None
@@ -62,7 +67,8 @@ class TraceRecorder:
         layout = [[f"{c}.{p}", list(a.shape[1:])] for (c, p), a in self.arrays.items()]
         (self.out_dir / "trace.part.json").write_text(json.dumps({"dtype": "<f8", "columns": [["t_s", []], *layout]}))
         self._part = open(self.out_dir / "trace.part", "wb")
-        self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self.scenario.name, self.path)
+        self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self.scenario.recording_id, self.path,
+                                                self.views)
         self.files["recording"] = self.out_dir / "recording.rrd"
 
     def on_tick(self, tick: int, t: float, values) -> None:

@@ -189,7 +189,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
             group = LocalGroup(steppers)
             for name in wiring.order:
                 timeout = scenario.components[name].timeout_s or scenario.timeout_s
-                steppers[name] = Stepper(name, setup_component(scenario, wiring, name), session, run_id,
+                steppers[name] = Stepper(name, setup_component(scenario, wiring, name, out), session, run_id,
                                          wiring, cache, timeout)
         scheduler = Scheduler(scenario, wiring, group, cache, [recorder], realtime, stop)
         with _progress_bar(scenario.n_steps, request.progress, scheduler.pacer) as bar:
@@ -218,6 +218,9 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     if late_faults:
         error = with_close_faults(error, late_faults)
     recorder.finish(str(error) if error else None)  # a no-op unless set-up failed
+    from cosim.rerun_log import merge_parts
+
+    merge_parts(out)  # what components recorded themselves, now that their processes have ended
     summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s if scheduler else 0.0, total_wall,
                        error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
     if scheduler and scheduler.pacer:
@@ -265,7 +268,7 @@ def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: st
     for name in wiring.order:
         listen = f"tcp/127.0.0.1:{_free_port()}"
         cmd = [sys.executable, "-m", "cosim.cli", "node", name, str(request.scenario_file),
-               "--run-id", run_id, "--listen", listen]
+               "--run-id", run_id, "--listen", listen, "--run-dir", str(request.out_dir)]
         for other in earlier:
             cmd += ["--connect", other]
         earlier.append(listen)

@@ -80,6 +80,8 @@ class RecordSpec(_Strict):
     solve_time: str | None = "controller.solve_time"
     #: Measurement minus the estimator's prediction at each frame (NaN between frames).
     prediction_error: str | None = "estimator.innovation"
+    #: When each measurement was captured [s] (a camera that has no such port: at delivery).
+    capture_time: str | None = "camera.capture_time"
 
 
 class ReportSpec(_Strict):
@@ -127,6 +129,11 @@ class Scenario(_Strict):
     @property
     def n_steps(self) -> int:
         return int(round(self.duration_s / self.dt_s))
+
+    @property
+    def recording_id(self) -> str:
+        """The id every file of a run's rerun recording shares (the viewer merges files by it)."""
+        return self.name
 
 
 # ---------------------------------------------------------------- loading

@@ -8,6 +8,7 @@ and write exactly the same bytes.
 from __future__ import annotations
 
 import zlib
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,8 +27,9 @@ def component_rng(seed: int, name: str) -> np.random.Generator:
     return np.random.default_rng([seed, zlib.crc32(name.encode())])
 
 
-def setup_component(scenario: Scenario, wiring: Wiring, name: str) -> Component:
-    """Instantiate and set up component ``name`` with its params, ``dt`` and (if asked) the path."""
+def setup_component(scenario: Scenario, wiring: Wiring, name: str, run_dir: Path | None = None) -> Component:
+    """Instantiate and set up component ``name`` with its params, ``dt`` and (if asked) the path
+    and the run's output folder ``run_dir`` with the recording's id (see :class:`Component`)."""
     spec = scenario.components[name]
     component = wiring.classes[name]()
     params: dict[str, Any] = {"dt": scenario.dt_s, **spec.params}
@@ -35,6 +37,10 @@ def setup_component(scenario: Scenario, wiring: Wiring, name: str) -> Component:
         if scenario.path is None:
             raise ComponentError(f"component {name!r} ({spec.plugin}) needs a path; the scenario has none")
         params["path"] = make_path(scenario.path.plugin, scenario.path.params)
+    if getattr(component, "uses_run_dir", False):
+        params["run_dir"] = None if run_dir is None else Path(run_dir)
+        params["recording_id"] = scenario.recording_id
+        params["name"] = name
     try:
         component.setup(params, component_rng(scenario.seed, name))
     except ComponentError as exc:

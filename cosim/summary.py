@@ -7,7 +7,14 @@ Run figures (all in mm or ms):
 * ``prediction_error_mm``: per-axis mean absolute and Euclidean RMS of the
   estimator's innovation (measurement minus prediction at each frame, the
   paper's Table IV), {x, y, z, rmse};
-* ``solve_ms``: the controller's computation per step, {median, p99}.
+* ``solve_ms``: the controller's computation per step, {median, p99};
+* ``detection_error_mm``: distance of each measurement to the true position
+  at its capture time (the ``capture_time`` role; a camera without one is
+  taken to deliver at capture), {median, p99}.
+
+Components add figures of their own from their recorded outputs
+(:meth:`cosim.component.Component.summary_figures`); a key another component
+or the framework already uses is prefixed with the component's name.
 """
 
 from __future__ import annotations
@@ -17,7 +24,10 @@ from typing import Any
 
 import numpy as np
 
-METRICS = ("tracking_error_mm", "estimation_error_mm", "prediction_error_mm", "solve_ms")
+METRICS = ("tracking_error_mm", "estimation_error_mm", "prediction_error_mm", "solve_ms", "detection_error_mm")
+#: the other keys of a run's summary.json (see :mod:`cosim.runner`), which no component figure takes
+RUN_KEYS = ("scenario", "status", "error", "steps", "sim_time_s", "wall_time_s", "realtime_factor",
+            "total_wall_time_s", "files", "realtime")
 
 
 def _stats(values_mm: np.ndarray | None) -> dict | None:
@@ -45,9 +55,45 @@ def run_figures(recorder) -> dict[str, Any]:
             out["prediction_error_mm"] = {"x": float(mae[0]), "y": float(mae[1]), "z": float(mae[2]),
                                           "rmse": float(np.sqrt((rows**2).sum(axis=1).mean())), "frames": len(rows)}
     solve = recorder.signal("solve_time")
-    if solve is not None and np.isfinite(solve).any():
-        ms = solve[np.isfinite(solve)] * 1e3
-        out["solve_ms"] = {"median": float(np.median(ms)), "p99": float(np.percentile(ms, 99))}
+    if solve is not None:
+        out["solve_ms"] = _quantiles(solve * 1e3)
+    measured = recorder.signal("measured")
+    if measured is not None and truth is not None:
+        error_m = detection_error_m(measured, truth, recorder.t_s[: len(truth)], recorder.signal("capture_time"))
+        out["detection_error_mm"] = _quantiles(error_m * 1e3)
+    out.update(component_figures(recorder))
+    return out
+
+
+def _quantiles(values: np.ndarray) -> dict | None:
+    """{median, p99} of the finite ``values``, None if there is none."""
+    v = values[np.isfinite(values)]
+    if not len(v):
+        return None
+    return {"median": float(np.median(v)), "p99": float(np.percentile(v, 99))}
+
+
+def detection_error_m(measured_m: np.ndarray, truth_m: np.ndarray, t_s: np.ndarray,
+                      capture_time_s: np.ndarray | None = None) -> np.ndarray:
+    """Distance [m] of each measurement (n, 3) to the truth (n, 3) at its capture time.
+
+    ``t_s`` (n,): the rows' times; ``capture_time_s`` (n,): when each row's
+    measurement was captured (NaN or absent: at the row's own time); the
+    truth is interpolated linearly between rows. NaN where no measurement.
+    """
+    at = t_s if capture_time_s is None else np.where(np.isfinite(capture_time_s), capture_time_s, t_s)
+    truth_at = np.stack([np.interp(at, t_s, truth_m[:, i]) for i in range(3)], axis=1)
+    return np.linalg.norm(measured_m - truth_at, axis=1)
+
+
+def component_figures(recorder) -> dict[str, Any]:
+    """What each component adds to the summary from its recorded outputs (see the module doc)."""
+    wiring, n = recorder.wiring, recorder.ticks
+    out: dict[str, Any] = {}
+    for name in wiring.order:
+        outputs = {p.name: recorder.arrays[(name, p.name)][:n] for p in wiring.outputs[name]}
+        for key, value in wiring.classes[name].summary_figures(outputs).items():
+            out[f"{name}.{key}" if key in out or key in METRICS or key in RUN_KEYS else key] = value
     return out
 
 

@@ -1,4 +1,4 @@
-"""Reading back what a run recorded: the events (faults and stops) of its rerun recording."""
+"""Reading back what a run recorded: the events (faults and stops) and the entities of its rerun recording."""
 
 from __future__ import annotations
 
@@ -15,3 +15,10 @@ def recorded_events(rrd: Path) -> list[str]:
             for row in chunk.to_record_batch().column("TextLog:text").to_pylist():
                 texts.extend(row)
     return texts
+
+
+def recorded_entities(rrd: Path) -> set[str]:
+    """The entity paths with data in the rerun recording ``rrd``."""
+    from rerun.chunk import RrdReader
+
+    return {chunk.entity_path for chunk in RrdReader(rrd).stream()}

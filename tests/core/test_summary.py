@@ -1,8 +1,10 @@
-"""Sweep figures: the largest interval under a threshold, the table and the plot."""
+"""Run and sweep figures: the detection error, the largest interval under a threshold, the table and the plot."""
 
 from __future__ import annotations
 
-from cosim.summary import largest_below, sweep_plot, sweep_table
+import numpy as np
+
+from cosim.summary import detection_error_m, largest_below, sweep_plot, sweep_table
 from figure_checks import assert_labelled
 
 
@@ -31,3 +33,16 @@ def test_table_and_plot(tmp_path, saved_figures):
     assert_labelled(saved_figures)
     assert saved_figures["sweep_interval_s.png"]["axes"] == [("interval [s]", "mean tracking error [mm]")]
     assert saved_figures["sweep_interval_s.png"]["title"].startswith("fig6: ")
+
+
+def test_detection_error_compares_each_measurement_with_the_truth_when_it_was_captured():
+    t_s = np.arange(5) * 0.02
+    truth = np.stack([t_s * 0.01, np.zeros(5), np.zeros(5)], axis=1)  # 10 mm/s along x
+    measured = np.full((5, 3), np.nan)
+    measured[2] = truth[1] + [0.0, 3e-6, 0.0]  # delivered at row 2, captured at row 1's time, 3 um off
+    measured[4] = truth[4] + [0.0, 0.0, 4e-6]  # no capture time: taken at its own row
+    capture = np.array([np.nan, np.nan, 0.02, np.nan, np.nan])
+    error = detection_error_m(measured, truth, t_s, capture)
+    assert np.isnan(error[[0, 1, 3]]).all()
+    assert np.allclose(error[[2, 4]], [3e-6, 4e-6])
+    assert detection_error_m(measured, truth, t_s)[2] > 1e-4  # against row 2's truth: 0.2 mm off
