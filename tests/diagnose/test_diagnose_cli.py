@@ -67,7 +67,8 @@ def test_validate_logs_are_the_held_out_data(plant_logs, tmp_path):
 
 def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagnosis, plant_logs, tmp_path):
     """The README's walkthrough in quick form: the plant drifts at 3 mm/s; with 1.5 s between camera frames the
-    filter on the model diagnose saved (with the flow) tracks better than on the plain model `cosim fit` makes."""
+    filter on the model diagnose saved (with the flow) predicts each frame and tracks better than on the plain model
+    `cosim fit` makes (40 s runs)."""
     from cosim.identify.model import load_model
 
     _, printed, with_flow, _ = flow_diagnosis
@@ -83,5 +84,9 @@ def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagno
         assert main(["run", str(ROOT / "scenarios" / "flow_kf_sweep.yaml"), "--out", str(out), "--quiet",
                      "--set", "sweep={}", "--set", "duration_s=40", "--set", f"components.estimator.params.model={path}",
                      "--set", "components.camera.params.interval_s=1.5"]) == 0
-        error[name] = json.loads((out / "summary.json").read_text())["tracking_error_mm"]["mean"]
-    assert error["with_flow"] < 0.7 * error["plain"], error
+        summary = json.loads((out / "summary.json").read_text())
+        error[name] = (summary["prediction_error_mm"]["rmse"], summary["tracking_error_mm"]["mean"])
+    # the filter's prediction over each 1.5 s gap misses the 4.5 mm drift without the effect; the tracking error
+    # gains less (the controller corrects at every frame) and depends on how the plain fit splits k and Cd1
+    (pred_plain, track_plain), (pred_flow, track_flow) = error["plain"], error["with_flow"]
+    assert pred_flow < 0.75 * pred_plain and track_flow < 0.9 * track_plain, error
