@@ -128,9 +128,9 @@ def to_raw_log(cmd_t_s, omega, pos_t_s, p_m, dt_s: float) -> tuple[np.ndarray, n
     pt, pp = np.asarray(pos_t_s)[ok], np.asarray(p_m)[ok]
     p = np.full((n, 3), np.nan)
     if len(pt):
-        j = np.clip(np.searchsorted(pt, grid), 1, len(pt) - 1) if len(pt) > 1 else np.zeros(n, dtype=int)
-        if len(pt) > 1:
-            j = np.where(np.abs(pt[j - 1] - grid) <= np.abs(pt[j] - grid), j - 1, j)
+        after = np.minimum(np.searchsorted(pt, grid), len(pt) - 1)  # the detection at or after t_i (or the last)
+        before = np.maximum(after - 1, 0)
+        j = np.where(np.abs(pt[before] - grid) <= np.abs(pt[after] - grid), before, after)
         near = np.abs(pt[j] - grid) <= dt_s / 2
         p[near] = pp[j[near]]
     return grid - t0, omega[held], p
