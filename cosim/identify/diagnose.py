@@ -51,6 +51,7 @@ BLOCK_S = 5.0  # split: block length
 HOLDOUT_EVERY = 3  # split: every third block is held out
 MIN_FIT_WINDOWS = 60
 MIN_EVAL_WINDOWS = 30
+SCORE_WINDOWS = 300  # training windows whose open-loop error picks a fit's start
 EFFECT_MODEL = "physical"
 DISCOVERED_FILE = "discovered_effect.py"
 DISCOVER_ABOVE_FLOOR = 1.5  # a named effect leaving more than this x the floor: discovery runs too
@@ -127,17 +128,26 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         ev = jm.evaluate(tl, starts, lead, steps)
         return ev, _summary(ev)
 
-    baseline = _fit_model(s.model, dtr, ttr, fit_starts, fit_len, s, say)
+    # a fit's starts are told apart by their open-loop error at the reference horizon on training windows:
+    # the fit's own windows are shorter, and there a lag and a slower velocity response can cost about the same
+    score_starts = _sample(ttr.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE],
+                           SCORE_WINDOWS, s.seed)
+
+    def score(jm):
+        r = jm.evaluate(ttr, score_starts, lead, {s.reference: steps[s.reference]})[s.reference]
+        return float(np.mean(np.linalg.norm(r["err"][r["valid"]], axis=1))) if r["valid"].any() else np.inf
+
+    baseline = _fit_model(s.model, dtr, ttr, fit_starts, fit_len, s, say, score)
     base_ev, base_sum = evaluate(baseline)
     say(f"baseline {s.model}: held-out error {_fmt(base_sum['rollout_mm'])}")
     reference = baseline if supports_effects(baseline.host) else _fit_model(EFFECT_MODEL, dtr, ttr, fit_starts,
-                                                                            fit_len, s, say)
+                                                                            fit_len, s, say, score)
     ref_ev, ref_sum = (base_ev, base_sum) if reference is baseline else evaluate(reference)
     fitted = [reference]
     added_out, after = None, None
     if added:
         say(f"adding {', '.join(e.name for e in added)} ...")
-        after = _with_effects(reference, added, ttr, fit_starts, fit_len, s, say)
+        after = _with_effects(reference, added, ttr, fit_starts, fit_len, s, say, score)
         after_ev, after_sum = evaluate(after.model)
         added_out = {"effects": [e.name for e in added], "params": after.params, "std": after.std,
                      "before_mm": ref_sum["rollout_mm"], "rollout_mm": after_sum["rollout_mm"],
@@ -146,18 +156,19 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                                    for h in steps}}
         reference, ref_ev, ref_sum = after.model, after_ev, after_sum
         fitted.append(reference)
-    ranking, cand_models = [], {}
+    ranking, cand_models, cand_errors = [], {}, {}
+    block_rows = max(1, int(round(VERDICT_BLOCK_S / dt)))
     for effect in candidates:
         say(f"candidate {effect.name} ...")
-        cand = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None)
+        cand = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None, score)
         ev, summ = evaluate(cand.model)
-        ranking.append(_rank_entry(effect, cand, ev, summ, ref_ev, ref_sum, s.reference, test_starts,
-                                   max(1, int(round(VERDICT_BLOCK_S / dt)))))
+        ranking.append(_rank_entry(effect, cand, ev, summ, ref_ev, ref_sum, s.reference, test_starts, block_rows))
         fitted.append(cand.model)
-        cand_models[effect.name] = cand.model
+        cand_models[effect.name], cand_errors[effect.name] = cand.model, ev[s.reference]
         say(f"  {effect.name}: " + (f"{ranking[-1]['reduction']:+.1%} at {s.reference} s" if ranking[-1]["identifiable"]
                                     else "not identifiable from these logs"))
     ranking.sort(key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)
+    _compare_runner_up(ranking, cand_errors, test_starts, block_rows)
     tau_floor, tau_from = _floor_time_constant(fitted)
     floor = _floor(tte, test_starts, lead, steps, sigma, tau_floor, base_ev, s.seed)
     # localise what is left: the baseline's error, or with --add the error of the model with the added effects
@@ -188,7 +199,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     source = None
     if s.discover or result["verdict"]["status"] == "unexplained" or _left_above_floor(result, s.reference):
         result["discovered"], source = _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev,
-                                                 ref_sum, s, dt, evaluate, say)
+                                                 ref_sum, s, dt, evaluate, say, score)
         result["verdict"] = verdict(result, s.reference)
     result["timing_s"] = round(time.perf_counter() - t_start, 2)
     curves = {f"{s.model} (baseline)": base_sum["rollout_mm"], "noise floor": floor}
@@ -218,7 +229,7 @@ def _left_above_floor(result: dict, key: str) -> bool:
     return left > DISCOVER_ABOVE_FLOOR * floor
 
 
-def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref_sum, s, dt, evaluate, say):
+def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref_sum, s, dt, evaluate, say, score):
     """(result["discovered"], effect file source or None): the sparse regression of :mod:`.discover`."""
     from cosim.identify.discover import discover
 
@@ -226,7 +237,7 @@ def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref
         return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None
 
     def refit(effect):
-        fitted = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None)
+        fitted = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None, score)
         ev, summ = evaluate(fitted.model)
         return fitted, summ, ev
 
@@ -301,7 +312,7 @@ class _Fitted:
     identifiable: bool = True
 
 
-def _fit_model(name, dtr, ttr, starts, length, s: Settings, say) -> JointModel:
+def _fit_model(name, dtr, ttr, starts, length, s: Settings, say, score=None) -> JointModel:
     """Fit a registered model on the training data; a parametric one is then refined on the windows.
 
     A parametric model's refit also starts from the integrated equation-error fit begun at the
@@ -324,7 +335,8 @@ def _fit_model(name, dtr, ttr, starts, length, s: Settings, say) -> JointModel:
         model.dt_s, nfev = dtr.dt_s, 3 * s.max_nfev
     jm = JointModel(model)
     if supports_effects(model):
-        fit_joint(jm, ttr, starts, length, max_nfev=nfev, fresh_starts=[_host_init(jm.host)], progress=say)
+        fit_joint(jm, ttr, starts, length, max_nfev=nfev, fresh_starts=[_host_init(jm.host)], progress=say,
+                  score=score)
     return jm
 
 
@@ -333,7 +345,7 @@ def _host_init(host) -> dict:
     return {q.name: q.init for q in host.all_params() if "." not in q.name}
 
 
-def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, say) -> _Fitted:
+def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, say, score=None) -> _Fitted:
     """The reference model plus ``effects``, all parameters refitted jointly.
 
     Starts: the reference's parameters with each effect's starts (its listed ones and those drawn
@@ -346,11 +358,10 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, sa
         base_host.dt_s = ref.dt_s
     jm = JointModel(base_host, [*ref.effects, *effects], base_params=ref.params())
     extra = [st for e in effects for st in e.qualified_starts(ttr.u, ttr.dt_s)]
-    defaults = {n: q.init for e in effects for n, q in zip(e.param_names(), e.params)}
     host0 = _host_init(base_host)
-    fresh = [{**host0, **defaults, **st} for st in [{}, *extra]]
+    fresh = [host0] + [{**host0, **st} for st in extra]  # the effects' own starts held while the host adapts
     res = fit_joint(jm, ttr, starts, length, max_nfev=s.max_nfev, extra_starts=extra, fresh_starts=fresh,
-                    progress=say)
+                    progress=say, score=score)
     own = [q for e in effects for q in e.param_names()]
     units = {q.name: q.unit for q in jm.param_list}
     std = {n: (float(res.std[n]) if np.isfinite(res.std[n]) else None) for n in own}
@@ -417,6 +428,16 @@ def _rank_entry(effect, cand: _Fitted, ev, summ, ref_ev, ref_sum, key, starts, b
     return {"effect": effect.name, "kind": effect.kind, "rollout_mm": summ["rollout_mm"],
             "reduction": red[key], "reduction_by_horizon": red, "t_stat": t, "identifiable": cand.identifiable,
             "params": cand.params, "fit": cand.fit, "conditioning": cand.model.conditioning, "doc": effect.doc}
+
+
+def _compare_runner_up(ranking: list, errors: dict, starts: np.ndarray, block_rows: int) -> None:
+    """Give the best identifiable entry a ``runner_up``: the second one, its reduction, and the paired t of the
+    best's held-out errors against it (small t: the logs cannot tell the two effects apart)."""
+    top = [e for e in ranking if e["identifiable"]][:2]
+    if len(top) == 2:
+        best, second = top
+        best["runner_up"] = {"effect": second["effect"], "reduction": second["reduction"],
+                             "t_stat": paired_t(errors[second["effect"]], errors[best["effect"]], starts, block_rows)}
 
 
 def _fmt(d: dict) -> str:

@@ -33,10 +33,11 @@ from cosim.errors import UserError
 from cosim.identify.effect import split_kinds
 
 DV = 1.0  # velocity perturbation for the sensitivities [mm/s]
-SHORT_NFEV = 6  # evaluations of the short refinement of each promising start
-KEEP_STARTS = 2  # starts refined briefly before the better one is refined fully
+SHORT_NFEV = 3  # evaluations of the short refinement of every start, on the screening windows
+SCREEN_EVERY = 4  # the screening windows: every 4th training window
 EE_WINDOWS = 200  # training windows the equation-error starts use
 EE_NFEV = 15  # evaluations of each equation-error fit
+DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank)
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
 
@@ -205,7 +206,8 @@ class JointModel:
             starts: (w,) window start rows (the lead-in's first row).
             steps: {horizon key: steps after the lead-in}.
         Returns:
-            {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm]}}
+            {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm]}}; a window whose
+            rollout diverged has an error of :data:`DIVERGED_MM`, not NaN
         """
         length = lead + max(steps.values())
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
@@ -218,6 +220,8 @@ class JointModel:
             row = lead + k
             valid = (tl.run[starts] >= row) & np.all(np.isfinite(target[:, row]), axis=1)
             err = np.where(valid[:, None], pred[:, row] - np.nan_to_num(target[:, row]), np.nan)
+            diverged = valid & ~np.all(np.isfinite(err), axis=1)
+            err[diverged] = DIVERGED_MM / math.sqrt(3.0)
             out[key] = {"valid": valid, "err": err}
         return out
 
@@ -262,36 +266,48 @@ class FitResult:
 
 
 def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int = 30,
-              extra_starts=(), fresh_starts=(), progress=None) -> FitResult:
+              extra_starts=(), fresh_starts=(), progress=None, score=None) -> FitResult:
     """Fit all parameters of ``jm`` on windows of ``length`` steps at rows ``starts``.
 
     Starts: the current parameters; each ``extra_starts`` dict ``{name: value}``
     applied to them; and, for continuous-time hosts, the integrated
     equation-error fit (:mod:`cosim.identify.equation_error`) from each
-    ``fresh_starts`` dict applied to the current parameters (all parameters
-    free: a start that does not inherit a degenerate previous fit). The
-    cheapest inherited and the cheapest fresh start (:func:`_promising`) are
-    refined for :data:`SHORT_NFEV` evaluations, the better of them for up to
-    ``max_nfev`` more; the optimiser
-    works in units of each parameter's typical scale. Standard errors come
+    ``fresh_starts`` dict applied to the current parameters (a start that does
+    not inherit a degenerate previous fit; the effect parameters it names,
+    ``effect.param``, are held at their values, the host's adapt). Every
+    distinct start is refined for :data:`SHORT_NFEV` evaluations (an extra
+    start holding its own values, the rest adapting to them) on every
+    :data:`SCREEN_EVERY`-th window (a start's own cost says little: in a flat
+    degenerate basin the right one can start dearer); the best of them by
+    ``score(jm)`` (lower is better; default: the screening cost) is refined
+    for up to ``max_nfev`` on all windows. The optimiser works in units of
+    each parameter's typical scale. Standard errors come
     from the Jacobian at the solution, sigma^2 (J^T J)^-1, inflated by how
     often each measurement enters overlapping windows;
     ``extra["conditioning"]`` says how well the data pin the parameters down
     (:func:`conditioning`).
     """
-    fit_rows = np.ones((len(starts), length + 1), dtype=bool)
-    target = targets(tl, starts, length)
-    use = np.all(np.isfinite(target), axis=2)
     counter = {"n": 0}
     fixed_u = None if jm.inputs else tl.effective_commands([], {})
 
-    def residual(theta):
-        counter["n"] += 1
-        jm._set(theta)
-        with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
-            pred, _, _ = jm.projected(tl, starts, length, fit_rows, u_eff=fixed_u)
-            r = np.where(use[..., None], pred - np.nan_to_num(target), 0.0)
-        return np.nan_to_num(r.reshape(-1), nan=1e6, posinf=1e6, neginf=-1e6)
+    def objective(rows: np.ndarray):
+        """The residual function on the windows at ``rows`` (w,), and its mask of measured rows (w, L + 1)."""
+        fit_rows = np.ones((len(rows), length + 1), dtype=bool)
+        target = targets(tl, rows, length)
+        use = np.all(np.isfinite(target), axis=2)
+        target = np.nan_to_num(target)
+
+        def residual(theta):
+            counter["n"] += 1
+            jm._set(theta)
+            with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
+                pred, _, _ = jm.projected(tl, rows, length, fit_rows, u_eff=fixed_u)
+                r = np.where(use[..., None], pred - target, 0.0)
+            return np.nan_to_num(r.reshape(-1), nan=1e6, posinf=1e6, neginf=-1e6)
+
+        return residual, use
+
+    residual, use = objective(starts)
 
     def applied(values: dict) -> np.ndarray:
         th = jm.theta.copy()
@@ -300,29 +316,42 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
         return jm.clip(th)
 
     theta_now = jm.clip(jm.theta)
-    candidates = [theta_now] + [applied(extra) for extra in extra_starts]
+    # (start, the names it holds during its brief refinement): an effect's listed start keeps its own values
+    # while the rest adapts to them (a lag of 0.3 s needs a faster velocity response than the fit without it)
+    candidates = [(theta_now, ())] + [(applied(extra), tuple(extra)) for extra in extra_starts]
     if fresh_starts and supports_equation_error(jm):
         from cosim.identify.equation_error import EquationError
 
         sub = starts if len(starts) <= EE_WINDOWS else starts[:: int(np.ceil(len(starts) / EE_WINDOWS))]
         ee = EquationError(jm, tl, sub, length)
-        fresh = [applied(f) for f in fresh_starts]
-        candidates += [jm.clip(ee.fit(th, max_nfev=EE_NFEV)[0]) for th in fresh]
+        for start in fresh_starts:
+            held = tuple(n for n in start if "." in n)  # an effect's start values stay; the host adapts to them
+            free = np.array([n not in held for n in jm.names])
+            candidates.append((jm.clip(ee.fit(applied(start), free, max_nfev=EE_NFEV)[0]), ()))
         jm._set(theta_now)
-    costs = np.array([float(np.sum(residual(th) ** 2)) for th in candidates])
-    costs[~np.isfinite(costs)] = np.inf
-    order = _promising(costs, n_inherited=len(candidates) - (len(fresh_starts) if fresh_starts and
-                                                             supports_equation_error(jm) else 0))
     lo, hi = jm.bounds()
     scale = jm.scales()
-    r0 = residual(candidates[order[0]])
-    short = [least_squares(residual, candidates[i], bounds=(lo, hi), x_scale=scale, method="trf",
-                           max_nfev=SHORT_NFEV, ftol=1e-6, xtol=1e-7) for i in order]
-    k = int(np.argmin([r.cost for r in short]))
-    res = short[k]
-    if res.status == 0:  # the evaluation budget ran out: carry on from there
-        res = least_squares(residual, res.x, bounds=(lo, hi), x_scale=scale, method="trf",
-                            max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
+    candidates = _distinct(candidates, scale)
+    if len(candidates) > 1:  # every start refined briefly on a quarter of the windows, the best one goes on
+        screen, _ = objective(starts[::SCREEN_EVERY])
+        short = [_refine_held(screen, th, [jm.names.index(n) for n in held], lo, hi, scale)
+                 for th, held in candidates]
+        costs = [cost for _, cost in short]
+        if score is not None:  # e.g. the open-loop error at a longer horizon than the windows'
+
+            def scored(th):
+                jm._set(th)
+                value = float(score(jm))
+                return value if np.isfinite(value) else np.inf
+
+            costs = [scored(th) if np.isfinite(cost) else np.inf for th, cost in short]
+        best = int(np.argmin(costs))
+        start_theta = short[best][0]
+    else:
+        best, start_theta = 0, candidates[0][0]
+    r0 = residual(candidates[best][0])
+    res = least_squares(residual, start_theta, bounds=(lo, hi), x_scale=scale, method="trf",
+                        max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
     jm._set(res.x)
     n_used = int(use.sum()) * 3
     rows_used = np.zeros(tl.n, dtype=bool)
@@ -333,22 +362,38 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     if progress:
         progress(f"fit {len(starts)} windows x {length} steps: rms {math.sqrt(np.mean(r0 ** 2) * r0.size / n_used):.3f}"
                  f" -> {math.sqrt(2 * res.cost / n_used):.3f} mm ({counter['n']} evaluations, "
-                 f"start {order[k]} of {len(candidates)})")
+                 f"start {best + 1} of {len(candidates)})")
     return FitResult(params=jm.params(), std=dict(zip(jm.names, std)),
                      rms_mm=math.sqrt(2 * res.cost / n_used), rms_start_mm=math.sqrt(float(np.sum(r0 ** 2)) / n_used),
-                     evaluations=counter["n"], status=int(res.status), start=order[k],
+                     evaluations=counter["n"], status=int(res.status), start=best,
                      extra={"conditioning": jm.conditioning})
 
 
-def _promising(costs: np.ndarray, n_inherited: int) -> list[int]:
-    """Indices of the starts to refine: the cheapest inherited one, the cheapest fresh one (the
-    equation-error starts, from index ``n_inherited`` on: a different basin even when its cost is
-    higher), then the cheapest others, :data:`KEEP_STARTS` in all."""
-    ranked = [int(i) for i in np.argsort(costs, kind="stable") if np.isfinite(costs[i])]
-    picks = [next((i for i in ranked if i < n_inherited), None), next((i for i in ranked if i >= n_inherited), None)]
-    picks = [i for i in picks if i is not None]
-    picks += [i for i in ranked if i not in picks][: max(KEEP_STARTS - len(picks), 0)]
-    return picks or [0]
+def _distinct(candidates: list, scale: np.ndarray) -> list:
+    """``candidates`` (theta, held names) without repeats: a start within a hundredth of every parameter's
+    scale of an earlier one with the same held names."""
+    out = []
+    for th, held in candidates:
+        if not any(h == held and np.all(np.abs(th - kept) <= 0.01 * scale) for kept, h in out):
+            out.append((th, held))
+    return out
+
+
+def _refine_held(fun, theta: np.ndarray, held: list, lo, hi, scale) -> tuple[np.ndarray, float]:
+    """:data:`SHORT_NFEV` evaluations of least squares from ``theta`` with the parameters at indices ``held``
+    kept at their values; (the refined theta, its cost, inf when not finite)."""
+    free = np.setdiff1d(np.arange(len(theta)), held)
+
+    def sub(x):
+        th = theta.copy()
+        th[free] = x
+        return fun(th)
+
+    r = least_squares(sub, theta[free], bounds=(lo[free], hi[free]), x_scale=scale[free], method="trf",
+                      max_nfev=SHORT_NFEV, ftol=1e-6, xtol=1e-7)
+    out = theta.copy()
+    out[free] = r.x
+    return out, float(r.cost) if np.isfinite(r.cost) else np.inf
 
 
 def supports_equation_error(jm) -> bool:

@@ -15,7 +15,9 @@ effect explains the remaining error" with the localisation clues.
 Candidates whose parameters do not change the predictions are not
 identifiable and never named. When a discovered form (:mod:`.discover`)
 leaves at most 1 - :data:`DISCOVERED_MARGIN` of the error the best listed
-effect leaves, the verdict says so instead of naming that effect.
+effect leaves, the verdict says so instead of naming that effect; when the
+runner-up explains the error about as well (paired t < :data:`MIN_T`), it says
+the logs cannot tell the two apart.
 :func:`fit_notes` says in words where a fit is degenerate or two
 parameters trade off.
 """
@@ -83,6 +85,7 @@ def verdict(result: dict, key: str) -> dict:
             if floor is not None and left > (1 + AT_FLOOR) * floor:
                 text += (f" The remaining error is still {left / floor:.1f}x the noise floor: add it "
                          f"(--add {best['effect']}) and diagnose again to look for a second effect.")
+            text += _runner_up_text(best)
             text += (f" Next: --add {best['effect']} --save-model MODEL.npz saves the model with it, which the "
                      "Kalman filter and the MPC take as their model (components.estimator.params.model=MODEL.npz).")
             return {"effect": best["effect"], "status": "explained", "explanation": prefix + text}
@@ -100,6 +103,17 @@ def verdict(result: dict, key: str) -> dict:
             f"{best_text} Clues: " + ("; ".join(clues) if clues else "none stand out") + "."
             + _discovered_text(result, key))
     return {"effect": None, "status": "unexplained", "explanation": prefix + text}
+
+
+def _runner_up_text(best: dict) -> str:
+    """A sentence when the second-ranked effect explains the error about as well (paired t < :data:`MIN_T`)."""
+    rival = best.get("runner_up")
+    if not rival or rival["reduction"] < MIN_REDUCTION or rival["t_stat"] >= MIN_T:
+        return ""
+    return (f" {rival['effect']} lowers it almost as much ({rival['reduction']:.0%}) and the two do not differ "
+            f"significantly (t = {rival['t_stat']:.1f} < {MIN_T:.0f}): these logs cannot tell {best['effect']} "
+            f"from {rival['effect']}; refit with each (--add) and compare their parameters with what you know of "
+            "the rig, or record logs where they differ.")
 
 
 def _sentence(text: str) -> str:

@@ -17,7 +17,9 @@ and c_hat taken from the data the force is linear in the six parameters.
 Integration (stable for any drag): over a step the drag is exact (exponential
 integrator with rate lambda = 1000 Cd / m), the other forces held constant,
 then the position moves with the new velocity: v' = e^{-lambda dt} v +
-dt phi1(lambda dt) a_other, p' = p + dt v'. So v' = (p' - p) / dt, the paper's
+dt phi1(lambda dt) a_other, p' = p + dt v'. An extra term's drag (the part
+of its force that grows with the velocity, along it) joins lambda, so a
+stiff quadratic drag is as stable as the linear one. So v' = (p' - p) / dt, the paper's
 backward-difference velocity, and a state built from data is consistent with
 the model's own.
 
@@ -164,6 +166,23 @@ class PhysicalModel(Model):
             self._names_key, self._names = key, tuple(q.name for q in self.all_params())
         return self._names
 
+    def _velocity_terms(self) -> tuple[bool, ...]:
+        """Per term: does its force change with the velocity? (probed once, a typical step from the initial values)"""
+        key = tuple(map(id, self.terms))
+        if getattr(self, "_moving_key", None) != key:
+            rng = np.random.default_rng(0)
+            p, u = rng.uniform(-40.0, 40.0, (8, 3)), rng.uniform(-10.0, 10.0, (8, 3))
+            v = rng.uniform(-30.0, 30.0, (8, 3))
+            named = {q.name: float(np.clip(q.init + q.typical(), q.lo, q.hi)) for q in self.all_params()}
+            flags = []
+            for term in self.terms:
+                prm = _term_params(term, named)
+                with np.errstate(all="ignore"):
+                    moved = term.force(p, v, u, prm) - term.force(p, np.zeros_like(v), u, prm)
+                flags.append(not np.allclose(moved, 0.0, atol=0.0))
+            self._moving_key, self._moving = key, tuple(flags)
+        return self._moving
+
     def set_params(self, params: dict) -> None:
         names = [p.name for p in self.all_params()]
         unknown = set(params) - set(names)
@@ -223,11 +242,23 @@ class PhysicalModel(Model):
         sin_a, lift, cent = _geometry_t(p, v_geo, u, self._pb)
         a = th[0] * f + th[3] * lift + th[5] * cent
         a[2] += th[4]
+        drag = th[1] * sin_a + th[2]
         if self.terms:
             named = dict(zip(self._param_names(), th))
-            for term in self.terms:
-                a += term.force(p.T, v_geo.T, f.T, _term_params(term, named)).T
-        z = (s * h) * (th[1] * sin_a + th[2])
+            slowing = 0.0
+            for term, moving in zip(self.terms, self._velocity_terms()):
+                prm = _term_params(term, named)
+                ft = term.force(p.T, v_geo.T, f.T, prm).T
+                a += ft
+                if moving:  # the part of its force that grows with the velocity, along it
+                    ft = ft - term.force(p.T, np.zeros_like(v_geo.T), f.T, prm).T
+                    slowing = slowing - (ft * v_geo).sum(0)
+            # a drag among the terms joins the exact decay (a stiff quadratic drag cannot blow up): rate
+            # lambda_e = -(F(v) - F(0)) . v / |v|^2 >= 0, and lambda_e v is given back to the held forces
+            extra = np.maximum(slowing, 0.0) / np.maximum((v_geo * v_geo).sum(0), 1e-12)
+            drag = drag + extra
+            a += extra * v_geo
+        z = (s * h) * drag
         out = np.empty_like(x)
         out[3:] = np.exp(-z) * v + (s * h) * phi1(z) * a
         out[:3] = p + h * out[3:]
