@@ -37,7 +37,7 @@ SHORT_NFEV = 3  # evaluations of the short refinement of every start, on the scr
 SCREEN_EVERY = 4  # the screening windows: every 4th training window
 EE_WINDOWS = 200  # training windows the equation-error starts use
 EE_NFEV = 15  # evaluations of each equation-error fit
-DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank)
+DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank) [mm]
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
 
@@ -207,7 +207,7 @@ class JointModel:
             steps: {horizon key: steps after the lead-in}.
         Returns:
             {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm]}}; a window whose
-            rollout diverged has an error of :data:`DIVERGED_MM`, not NaN
+            rollout diverged (NaN, or off by more than :data:`DIVERGED_MM`) has an error of DIVERGED_MM
         """
         length = lead + max(steps.values())
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
@@ -220,7 +220,8 @@ class JointModel:
             row = lead + k
             valid = (tl.run[starts] >= row) & np.all(np.isfinite(target[:, row]), axis=1)
             err = np.where(valid[:, None], pred[:, row] - np.nan_to_num(target[:, row]), np.nan)
-            diverged = valid & ~np.all(np.isfinite(err), axis=1)
+            with np.errstate(all="ignore"):
+                diverged = valid & ~(np.linalg.norm(err, axis=1) <= DIVERGED_MM)  # NaN too
             err[diverged] = DIVERGED_MM / math.sqrt(3.0)
             out[key] = {"valid": valid, "err": err}
         return out

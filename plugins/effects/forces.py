@@ -164,7 +164,9 @@ ANISOTROPIC_DRAG = Effect(
     force=_anisotropic_drag,
     doc="Anisotropic drag of an elongated body: moving broadside costs more than moving along its axis "
         "(slender-body ratio up to 2). With the long axis along the command u, the extra force is "
-        "-c (v - (v . u_hat) u_hat), c [uN s/mm]; the paper's Cd0 sin(alpha) v is a cruder form.",
+        "-c (v - (v . u_hat) u_hat), c [uN s/mm]. For small angles of attack the paper's lift "
+        "Cl0 sin(2 alpha) |v| v_perp is the same force with c = 2 Cl0, so the model absorbs most of it: only "
+        "broadside motion (sinking across the axis, sharp turns) tells the two apart.",
 )
 
 

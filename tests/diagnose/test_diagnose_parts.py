@@ -153,3 +153,40 @@ def test_a_latency_reads_the_path_before_each_window(synthetic):
     jm.lookback = lambda: 0  # extrapolating the first step backwards instead
     ev = jm.evaluate(tl, starts, 10, {"1.0": 50})["1.0"]
     assert np.mean(np.linalg.norm(ev["err"][ev["valid"]], axis=1)) > 10 * max(err.mean(), 1e-4)
+
+
+def test_verdict_says_when_the_runner_up_explains_the_error_about_as_well():
+    from cosim.identify.verdict import verdict
+
+    def result(t_between):
+        entry = {"effect": "actuation_lag", "reduction": 0.36, "t_stat": 6.0, "rollout_mm": {"1.0": 0.64},
+                 "params": {"actuation_lag.tau": {"value": 0.05, "std": 0.01, "unit": "s"}},
+                 "runner_up": {"effect": "sensor_latency", "reduction": 0.31, "t_stat": t_between}}
+        second = {"effect": "sensor_latency", "reduction": 0.31, "t_stat": 5.0, "rollout_mm": {"1.0": 0.69},
+                  "params": {}}
+        return {"reference": None, "baseline": {"rollout_mm": {"1.0": 1.0}}, "noise": {"floor_mm": {"1.0": 0.3}},
+                "ranking": [entry, second], "localisation": {"clues": []}}
+
+    close = verdict(result(1.2), "1.0")
+    assert close["effect"] == "actuation_lag"
+    assert "cannot tell actuation_lag from sensor_latency" in close["explanation"]
+    assert "t = 1.2 < 3" in close["explanation"]
+    apart = verdict(result(4.5), "1.0")
+    assert apart["effect"] == "actuation_lag" and "cannot tell" not in apart["explanation"]
+
+
+def test_a_diverging_model_shows_a_huge_error_not_nan(synthetic):
+    """A force that feeds the velocity (+c v, c m / dt >> 1) blows the rollouts up: each valid window's error
+    is DIVERGED_MM, so means and rankings stay numbers."""
+    from cosim.identify.joint import DIVERGED_MM
+    from cosim.identify.terms import ForceTerm, Param
+
+    ds, plant = synthetic
+    tl = Timeline.from_dataset(ds)
+    push = ForceTerm("push", (Param("c", 5.0),), lambda p, v, u, prm: prm["c"] * v)
+    jm = JointModel(plant, [push])
+    starts = np.arange(20, tl.n - 80, 37)
+    ev = jm.evaluate(tl, starts, 10, {"1.0": 50})["1.0"]
+    err = np.linalg.norm(ev["err"][ev["valid"]], axis=1)
+    assert ev["valid"].sum() > 10 and np.all(np.isfinite(err))
+    assert np.allclose(err, DIVERGED_MM)

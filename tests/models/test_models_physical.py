@@ -52,6 +52,27 @@ def test_stiff_drag_is_stable():
     np.testing.assert_allclose(traj[0, -1, 3:], [2.0, 0.0, 0.0], atol=1e-6)  # terminal velocity k u / Cd1
 
 
+def test_stiff_quadratic_drag_term_is_stable_and_exact_for_small_steps():
+    """A term's drag joins the exact decay: a quadratic drag whose explicit step would overshoot
+    (c |v| dt / m ~ 50: the speed would flip sign and grow) slows the swimmer without reversing it and
+    settles at its terminal speed; for tiny steps the acceleration is still the force law's."""
+    model = PhysicalModel.from_params({"k": 0.1, "Cd1": 0.05, "Cd0": 0.0, "quadratic_drag.c": 0.05},
+                                      terms=[quadratic_drag()])
+    x = np.array([[0.0, 0.0, 0.0, 600.0, 0.0, 0.0]])
+    u = np.array([[10.0, 0.0, 0.0]])
+    traj = model.rollout(x, u[:, None].repeat(200, axis=1), 0.02)
+    speed = traj[0, :, 3]
+    assert np.all(np.isfinite(traj)) and np.all((speed >= 0.0) & (speed <= 600.0))
+    # terminal speed: k u = Cd1 v + c v^2
+    v_end = (-0.05 + math.sqrt(0.05**2 + 4 * 0.05 * 0.1 * 10.0)) / (2 * 0.05)
+    assert speed[-1] == pytest.approx(v_end, rel=1e-6)
+    xs, us = _random_states(40, seed=3)
+    dt = 1e-7
+    acc = (model.predict(xs, us, dt)[:, 3:] - xs[:, 3:]) / dt
+    f = forces(xs[:, :3], xs[:, 3:], us, model.params(), terms=model.terms)
+    np.testing.assert_allclose(acc, 1000.0 * f / 12.4, rtol=1e-4, atol=1e-3)
+
+
 def test_fit_recovers_known_parameters(make_dataset, tmp_path):
     """Data made by the physical model itself (camera noise 0.03 mm, gaps, outliers, repeats)."""
     plant = synthetic_plant(richer=False)
