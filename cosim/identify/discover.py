@@ -320,7 +320,7 @@ def _reading(terms, coefs: dict, host: dict) -> str | None:
     S = 0.5 * (M + M.T)
     rot = A[1, 0]  # f_x ~ -rot y, f_y ~ +rot x: a rotation about z
     if abs(rot) > 0 and abs(rot) >= 2 * max(np.abs(S[:2, :2]).max(), abs(A[2, 0]), abs(A[2, 1])):
-        centre = np.array([-c0[1] / rot, c0[0] / rot]) if abs(rot) > 1e-12 else np.zeros(2)
+        centre = np.round(np.array([-c0[1] / rot, c0[0] / rot]) if abs(rot) > 1e-12 else np.zeros(2)) + 0.0
         spin = f", the water turning at about {rot / cd1:+.3g} rad/s" if cd1 > 0 else ""
         return (f"reading: the horizontal force turns about a vertical axis through about "
                 f"({centre[0]:+.0f}, {centre[1]:+.0f}) mm (a rotation about z{spin}: a swirl of the water)")

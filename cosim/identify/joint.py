@@ -34,7 +34,7 @@ from cosim.identify.effect import split_kinds
 
 DV = 1.0  # velocity perturbation for the sensitivities [mm/s]
 SHORT_NFEV = 3  # evaluations of the short refinement of every start, on the screening windows
-SCREEN_EVERY = 4  # the screening windows: every 4th training window
+SCREEN_EVERY = 8  # the screening windows: every 8th training window
 EE_WINDOWS = 200  # training windows the equation-error starts use
 EE_NFEV = 15  # evaluations of each equation-error fit
 DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank) [mm]
@@ -333,7 +333,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     lo, hi = jm.bounds()
     scale = jm.scales()
     candidates = _distinct(candidates, scale)
-    if len(candidates) > 1:  # every start refined briefly on a quarter of the windows, the best one goes on
+    if len(candidates) > 1:  # every start refined briefly on a few windows, the best one goes on
         screen, _ = objective(starts[::SCREEN_EVERY])
         short = [_refine_held(screen, th, [jm.names.index(n) for n in held], lo, hi, scale)
                  for th, held in candidates]

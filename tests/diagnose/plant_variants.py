@@ -8,6 +8,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
 PLANT = "components.plant.params"
 DURATION_S = 40
+FIT_WINDOWS = 350  # half the default: the suite stays fast; benchmarks/diagnose.py runs the default
 
 VARIANTS = {
     "plain": [],
@@ -21,10 +22,10 @@ VARIANTS = {
 def record_and_diagnose(job):
     """(variant, log paths, diagnosis result) of one variant: its four logs recorded into ``root``."""
     variant, root = job
-    from cosim.identify.diagnose import run as diagnose
+    from cosim.identify.diagnose import Settings, run as diagnose
     from cosim.runner import RunRequest, run
 
     out = Path(root) / variant
     run(RunRequest(SCENARIO, out, [f"duration_s={DURATION_S}", *VARIANTS[variant]], progress=False))
     logs = sorted(out.glob("runs/*/log.csv"))
-    return variant, logs, diagnose(logs).result
+    return variant, logs, diagnose(logs, settings=Settings(fit_windows=FIT_WINDOWS)).result

@@ -28,6 +28,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import blind_sim  # noqa: E402
 
+FIT_WINDOWS = 350  # half the default: the suite stays fast; the bench (benchmarks/blind.py) runs the default
 REGIME = {"duration_s": 60.0, "logs": 2, "noise_mm": 0.1, "dt_s": 0.02, "outlier_rate": 0.005, "lost_rate": 0.02}
 HARD = {"step_out": {"law": "inside"}, "heading_lag": {"tau_s": 0.2},  # a step-out inside the band, 0.2-0.25 s lags
         "actuation_lag": {"tau_s": 0.25}}
@@ -45,7 +46,7 @@ def _diagnose(item):
     case = blind_sim.draw_case(11, group, effect, **REGIME, **extra)
     logs = blind_sim.simulate(case, Path(folder) / name)
     plugins.reset()
-    diag = run(logs, settings=Settings(discover=group == "outside"))
+    diag = run(logs, settings=Settings(discover=group == "outside", fit_windows=FIT_WINDOWS))
     return name, diag.result, diag.discovered_source, [str(p) for p in logs]
 
 

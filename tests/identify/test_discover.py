@@ -43,7 +43,7 @@ def _form(**coefs):
 
 
 @pytest.mark.parametrize("coefs, words", [
-    ({"fx_1": 0.2, "fx_y": -0.01, "fy_x": 0.01}, "turns about a vertical axis through about (-0, +20) mm"),
+    ({"fx_1": 0.2, "fx_y": -0.01, "fy_x": 0.01}, "turns about a vertical axis through about (+0, +20) mm"),
     ({"fx_z": 0.006, "fy_z": 0.008}, "grows with height, pointing along (+0.60, +0.80) in (x, y): a shear flow "
                                      "(about 0.05 mm/s per mm of height)"),
     ({"fx_x_ux": 0.01}, "the thrust along x changes with x by about +10 % per 10 mm"),
