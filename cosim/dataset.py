@@ -100,14 +100,15 @@ class CacheLock:
 
 
 def ensure_dataset(quick: bool = False, folder: Path | None = None, force: bool = False,
-                   progress: bool = True) -> PaperDataset:
-    """The cached dataset; splits that are missing or stale are generated first (progress on stderr)."""
+                   progress: bool = True, jobs: int = 1) -> PaperDataset:
+    """The cached dataset; splits that are missing or stale are generated first (progress on stderr),
+    ``jobs`` runs at a time (see :mod:`cosim.sweep`)."""
     folder = Path(folder) if folder else cache_dir() / ("paper_dataset_quick" if quick else "paper_dataset")
     with CacheLock(folder.parent / f".{folder.name}.lock"):
-        return _ensure(folder, quick, force, progress)
+        return _ensure(folder, quick, force, progress, jobs)
 
 
-def _ensure(folder: Path, quick: bool, force: bool, progress: bool) -> PaperDataset:
+def _ensure(folder: Path, quick: bool, force: bool, progress: bool, jobs: int) -> PaperDataset:
     from cosim.runner import RunRequest, run
 
     manifest = folder / "manifest.json"
@@ -128,7 +129,7 @@ def _ensure(folder: Path, quick: bool, force: bool, progress: bool) -> PaperData
             continue
         print(f"generating the paper dataset's {split} logs in {folder}", file=sys.stderr)
         out = folder / "runs" / split
-        run(RunRequest(scenario, out, overrides, False, progress))
+        run(RunRequest(scenario, out, overrides, False, progress, jobs=jobs))
         logs = sorted(out.glob("runs/*/log.csv")) or [out / "log.csv"]
         data[split] = [str(f.relative_to(folder)) for f in logs]
         manifest.write_text(json.dumps(data, indent=2))

@@ -10,7 +10,7 @@ Ctrl-C (SIGINT) and SIGTERM stop a run after the tick under way: the
 components are closed (outputs made safe), everything recorded is kept and
 ``summary.json`` says ``"status": "interrupted"``; a sweep runs no further
 combination. ``summary.json`` says ``"running"`` while the run goes, so a
-folder whose process was killed tells so.
+folder whose process was killed tells so. Sweeps: see :mod:`cosim.sweep`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ import contextlib
 import json
 import os
 import secrets
-import shutil
 import signal
 import socket
 import subprocess
@@ -35,11 +34,11 @@ from cosim.paths import make_path
 from cosim.placement import node_cpus
 from cosim.portcache import PortCache, PortStore
 from cosim.recorder import TraceRecorder
-from cosim.scenario import Scenario, load_scenario, sweep_overrides
+from cosim.scenario import Scenario, load_scenario
 from cosim.scheduler import (WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest,
                              with_close_faults)
 from cosim.stepper import Stepper, setup_component
-from cosim.summary import METRICS, largest_below, run_figures, sweep_plot, sweep_table
+from cosim.summary import run_figures
 from cosim.wiring import build_wiring
 
 
@@ -59,6 +58,13 @@ class RunRequest:
     node_cpus: str = "auto"
     #: pace the ticks at this factor of real time (None: the scenario's ``realtime``)
     realtime: float | None = None
+    #: a sweep's runs at a time: 1 runs them one after another in this process
+    jobs: int = 1
+    #: where a sweep's runs execute: None (local worker processes when ``jobs`` > 1), ``local``,
+    #: ``dask`` or ``dask://HOST:PORT`` (see :mod:`cosim.executors`)
+    executor: str | None = None
+    #: a sweep's run still going after this many seconds of wall time is stopped and failed
+    run_timeout_s: float | None = None
 
 
 @contextlib.contextmanager
@@ -92,63 +98,9 @@ def run(request: RunRequest) -> dict[str, Any]:
     with stop_on_signals() as stop:
         if not scenario.sweep:
             return run_one(scenario, request, stop)
-        return _run_sweep(scenario, request, stop)
+        from cosim.sweep import run_sweep
 
-
-def _run_sweep(scenario: Scenario, request: RunRequest, stop: StopRequest) -> dict[str, Any]:
-    combos = sweep_overrides(scenario)
-    _clear_earlier_sweep(request.out_dir / "runs")
-    rows = []
-    for i, (labels, extra) in enumerate(combos):
-        if stop.event.is_set():
-            print(f"cosim: sweep stopped: {len(combos) - i} of {len(combos)} runs not started", file=sys.stderr)
-            break
-        tag = "_".join(f"{k}={v}" for k, v in labels.items())
-        sub_dir = request.out_dir / "runs" / f"{i:03d}_{_safe(tag)}"
-        if request.progress:
-            print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
-        sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
-                         request.processes, request.progress, request.node_cpus, request.realtime)
-        try:
-            summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub, stop)
-        except RunError as exc:  # the other runs go on; this one's summary says what happened
-            print(f"  {exc}", file=sys.stderr)
-            written = sub_dir / "summary.json"  # absent when the run failed before its first step
-            summary = json.loads(written.read_text()) if written.is_file() else {
-                "status": "failed", "error": str(exc), **dict.fromkeys(METRICS)}
-        rows.append({**labels, **{k: summary[k] for k in METRICS if summary[k] is not None},
-                     "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
-    summary: dict[str, Any] = {"scenario": scenario.name, "sweep": rows}
-    if stop.event.is_set():
-        summary["status"] = "interrupted"
-    table = sweep_table(rows)
-    threshold = scenario.report.threshold_mm
-    if threshold:
-        summary["largest_below_threshold"] = largest_below(rows, threshold)
-    summary["plots"] = [p.name for p in sweep_plot(rows, request.out_dir, threshold, scenario.name)]
-    _write_json(request.out_dir / "summary.json", summary)
-    (request.out_dir / "summary.md").write_text(table)
-    if not request.progress:  # --quiet
-        return summary
-    print(table)
-    for item in summary.get("largest_below_threshold", []):
-        group = " ".join(f"{k}={v}" for k, v in item.items() if k not in ("axis", "largest_below", "threshold_mm"))
-        print(f"largest {item['axis']} with mean tracking error below {threshold:g} mm: "
-              f"{item['largest_below']} ({group})")
-    return summary
-
-
-def _clear_earlier_sweep(runs_dir: Path) -> None:
-    """Remove the run folders an earlier sweep left in ``runs_dir`` (``NNN_label``, holding a
-    summary.json), so none is mistaken for one of this sweep's; says how many went."""
-    if not runs_dir.is_dir():
-        return
-    stale = sorted(d for d in runs_dir.iterdir()
-                   if d.is_dir() and d.name[:3].isdigit() and d.name[3:4] == "_" and (d / "summary.json").is_file())
-    for d in stale:
-        shutil.rmtree(d)
-    if stale:
-        print(f"cosim: cleared {len(stale)} run folder(s) of an earlier sweep in {runs_dir}", file=sys.stderr)
+        return run_sweep(scenario, request, stop)
 
 
 def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = None) -> dict[str, Any]:
@@ -168,7 +120,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     recorder = TraceRecorder(scenario, wiring, out, path)
     recorder.open()
     realtime = request.realtime or scenario.realtime
-    _write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
+    write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
                                        "note": "written when the run started; a run that ends rewrites it"})
     ports = [(c, p.name) for c in wiring.order for p in wiring.outputs[c]]
     endpoint = f"tcp/127.0.0.1:{_free_port()}" if request.processes else None
@@ -200,7 +152,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     except RunError as exc:  # in set-up: nothing ran
         error = exc
     except BaseException as exc:  # set-up failed otherwise (or Ctrl-C before the handlers): say so, then raise
-        _write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed",
+        write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed",
                                            "error": f"set-up: {type(exc).__name__}: {exc}"})
         raise
     finally:
@@ -225,7 +177,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
                        error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
     if scheduler and scheduler.pacer:
         summary["realtime"] = scheduler.pacer.summary()
-    _write_json(out / "summary.json", summary)
+    write_json(out / "summary.json", summary)
     if error:
         raise RunError(error.component, f"{str(error).split(': ', 1)[-1]} (recorded so far: {out})")
     return summary
@@ -329,10 +281,6 @@ class _progress_bar:
             self.bar.close()
 
 
-def _safe(text: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "=._-" else "_" for ch in text)[:80]
-
-
-def _write_json(path: Path, obj) -> None:
+def write_json(path: Path, obj) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(obj, indent=2) + "\n")
