@@ -5,9 +5,10 @@ and a node on another machine) would run the same experiment:
 
 * ``scenario``: the validated scenario with its overrides applied, as
   canonical JSON (so the file's path, comments and layout do not count);
-* ``code``: the source of the ``cosim`` package and of every registered
-  plugin (a package's whole source tree, a plugin file itself), by path
-  within its package, so the same code installed elsewhere hashes the same;
+* ``code``: the source of the ``cosim`` package, of every installed plugin
+  (built-in or from an entry point: its package's whole source tree) and of
+  the plugin files the scenario loads, by path within its package (a file:
+  by name), so the same code installed elsewhere hashes the same;
 * ``artifacts``: the files besides code the scenario's components depend on
   (:meth:`cosim.component.Component.artifacts`: the plant's FMU, a model
   file), by content.
@@ -77,14 +78,18 @@ def _source_files(module) -> list[tuple[str, Path]]:
     return [(f"{top}/{f.relative_to(root).as_posix()}", f) for f in root.rglob("*.py")]
 
 
-def code_digest() -> str:
-    """Digest of the ``cosim`` package and of every registered plugin's source."""
+def code_digest(plugin_files: list[Path] = ()) -> str:
+    """Digest of the ``cosim`` package, every installed plugin's source and ``plugin_files`` (a
+    scenario's own). Plugin files this process loaded for other scenarios do not count."""
     import cosim
-    from cosim.plugins import get_plugin_manager
+    from cosim.plugins import USER_PLUGIN_PREFIX, get_plugin_manager
 
     files: dict[str, Path] = dict(_source_files(cosim))
-    for plugin in get_plugin_manager().get_plugins():
-        files.update(_source_files(plugin))
+    pm = get_plugin_manager()
+    for plugin in pm.get_plugins():
+        if not (pm.get_name(plugin) or "").startswith(USER_PLUGIN_PREFIX):
+            files.update(_source_files(plugin))
+    files.update((f"scenario plugin {Path(f).name}", Path(f)) for f in plugin_files)
     return _cached_code_digest(tuple(sorted((name, str(path)) for name, path in files.items())))
 
 
@@ -125,9 +130,12 @@ def _file_digest(path: Path) -> str:
     return h.hexdigest()
 
 
-def fingerprint(scenario: Scenario) -> Fingerprint:
-    """The fingerprint of running ``scenario`` (overrides applied) with this process's code and files."""
-    return Fingerprint(scenario_digest(scenario), code_digest(), artifacts_digest(scenario))
+def fingerprint(scenario: Scenario, scenario_file: str | Path) -> Fingerprint:
+    """The fingerprint of running ``scenario`` (read from ``scenario_file``, overrides applied) with
+    this process's code and files."""
+    base = Path(scenario_file).parent
+    plugin_files = [Path(p) if Path(p).is_absolute() else base / p for p in scenario.plugins]
+    return Fingerprint(scenario_digest(scenario), code_digest(plugin_files), artifacts_digest(scenario))
 
 
 def differences(mine: Fingerprint, theirs: Fingerprint) -> list[str]:

@@ -43,6 +43,8 @@ class Job:
     processes: bool = False
     node_cpus: str = "auto"
     realtime: float | None = None
+    #: with ``processes``: the HOSTS.yaml placing the nodes (a run over machines; one run at a time)
+    hosts: str | None = None
     #: the run's own progress bar (a run in the client's process, one at a time)
     progress: bool = False
     #: stop the run after this many seconds of wall time (None: no limit)
@@ -140,9 +142,9 @@ def _run(job: Job, scenario_file: Path, run_dir: Path) -> tuple[dict, dict | Non
             timer.start()
         try:
             scenario = load_scenario(scenario_file, job.overrides)
-            made_by = fingerprint(scenario).as_dict()
+            made_by = fingerprint(scenario, scenario_file).as_dict()
             request = RunRequest(scenario_file, run_dir, list(job.overrides), job.processes, job.progress,
-                                 job.node_cpus, job.realtime)
+                                 job.node_cpus, job.realtime, hosts=Path(job.hosts) if job.hosts else None)
             summary = run_one(scenario, request, stop)
         except RunError as exc:
             written = run_dir / "summary.json"

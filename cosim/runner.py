@@ -30,6 +30,9 @@ from pathlib import Path
 from typing import Any
 
 from cosim import bus
+from cosim.fingerprint import fingerprint
+from cosim.hosts import load_hosts
+from cosim.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
 from cosim.paths import make_path
 from cosim.placement import node_cpus
 from cosim.portcache import PortCache, PortStore
@@ -41,8 +44,6 @@ from cosim.stepper import Stepper, setup_component
 from cosim.summary import run_figures
 from cosim.wiring import build_wiring
 
-
-NODE_START_TIMEOUT_S = 120.0
 
 
 @dataclass
@@ -65,6 +66,8 @@ class RunRequest:
     executor: str | None = None
     #: a sweep's run still going after this many seconds of wall time is stopped and failed
     run_timeout_s: float | None = None
+    #: with ``processes``: a HOSTS.yaml placing the nodes on machines (see :mod:`cosim.hosts`)
+    hosts: Path | None = None
 
 
 @contextlib.contextmanager
@@ -123,8 +126,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
                                        "note": "written when the run started; a run that ends rewrites it"})
     ports = [(c, p.name) for c in wiring.order for p in wiring.outputs[c]]
-    endpoint = f"tcp/127.0.0.1:{_free_port()}" if request.processes else None
-    session = bus.open_session(listen=[endpoint]) if endpoint else bus.open_session()
+    plan = load_hosts(request.hosts, scenario) if request.processes and request.hosts else None
+    endpoint = (plan.scheduler_listen if plan else _loopback_endpoint()) if request.processes else None
+    session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None) if endpoint \
+        else bus.open_session()
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
     cache = PortStore(ports, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, ports)
     procs: list[subprocess.Popen] = []
@@ -135,7 +140,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     try:
         if endpoint:
             group = RemoteGroup(session, run_id, wiring, cache)
-            _start_nodes(scenario, wiring, group, run_id, endpoint, request, cpus, procs)
+            expected = fingerprint(scenario, request.scenario_file)
+            commands = node_commands(request.scenario_file, request.overrides, wiring.order, run_id, endpoint,
+                                     out, expected, cpus, _loopback_endpoint, plan)
+            start_nodes(commands, group, expected, procs, plan.wait_s if plan else NODE_START_TIMEOUT_S, stop)
         else:
             steppers = {}
             group = LocalGroup(steppers)
@@ -204,55 +212,11 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
     }
 
 
-# ---------------------------------------------------------------- processes
-
-
-def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: str, request, cpus: str | None,
-                 started: list) -> None:
-    """Start one ``cosim node`` process per component (appended to ``started``); wait until each is ready.
-
-    The processes form a full mesh: each node listens on a port of its own and
-    connects to the scheduler's ``endpoint`` and to every node started before it.
-    ``cpus``: the CPU list every node runs on (None: the OS places them).
-    """
-    procs = {}
-    earlier = [endpoint]
-    for name in wiring.order:
-        listen = f"tcp/127.0.0.1:{_free_port()}"
-        cmd = [sys.executable, "-m", "cosim.cli", "node", name, str(request.scenario_file),
-               "--run-id", run_id, "--listen", listen, "--run-dir", str(request.out_dir)]
-        for other in earlier:
-            cmd += ["--connect", other]
-        earlier.append(listen)
-        if cpus:
-            cmd += ["--cpus", cpus]
-        for item in request.overrides:
-            cmd += ["--set", item]
-        # a session of their own: a Ctrl-C at the terminal reaches the scheduler only, which stops them
-        procs[name] = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True)
-        started.append(procs[name])
-    pending = set(procs)
-    deadline = time.monotonic() + NODE_START_TIMEOUT_S
-    while pending:
-        reply = group.poll_reply(0.05)
-        if reply is not None:
-            if not reply.get("ok", False):
-                raise RunError(reply.get("name", "?"), reply.get("error", "failed to start"))
-            if reply.get("phase") == "ready":
-                pending.discard(reply["name"])
-            continue
-        for name in sorted(pending):
-            if procs[name].poll() is not None:
-                raise RunError(name, f"its node process exited with status {procs[name].returncode} "
-                                     "before it was ready")
-        if time.monotonic() > deadline:
-            raise RunError(sorted(pending)[0], f"its node was not ready within {NODE_START_TIMEOUT_S:g} s")
-
-
-def _free_port() -> int:
+def _loopback_endpoint() -> str:
+    """A free TCP endpoint on loopback: where a node on this machine listens."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 class _progress_bar:

@@ -139,11 +139,13 @@ class Scenario(_Strict):
 # ---------------------------------------------------------------- loading
 
 
-def load_document(path: str | Path) -> tuple[dict, yaml.Node | None]:
-    """Read a YAML file as ``(data, node tree)``; syntax errors name the line."""
+def load_document(path: str | Path, what: str = "scenario") -> tuple[dict, yaml.Node | None]:
+    """Read a YAML file (a ``what``: scenario, hosts file) as ``(data, node tree)``; syntax errors
+    name the line."""
     path = Path(path)
     if not path.is_file():
-        raise ScenarioError(f"scenario file {path} does not exist")
+        raise ScenarioError(f"{what} file {path} does not exist" if what == "scenario" else
+                            f"{what} {path} does not exist")
     text = path.read_text()
     try:
         node = yaml.compose(text)
@@ -153,7 +155,7 @@ def load_document(path: str | Path) -> tuple[dict, yaml.Node | None]:
         where = f" line {mark.line + 1}" if mark else ""
         raise ScenarioError(f"{path}{where}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
     if not isinstance(data, dict):
-        raise ScenarioError(f"{path}: a scenario is a YAML mapping, got {type(data).__name__}")
+        raise ScenarioError(f"{path}: a {what} is a YAML mapping, got {type(data).__name__}")
     return data, node
 
 
@@ -181,20 +183,23 @@ def validate(data: dict, source: str = "<scenario>", node: yaml.Node | None = No
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        lines = []
-        for err in exc.errors():
-            loc = [str(p) for p in err["loc"]]
-            field = ".".join(loc) or "(top level)"
-            line = _line_of(node, err["loc"])
-            where = f" (line {line})" if line else ""
-            msg = err["msg"]
-            if err["type"] == "extra_forbidden":
-                msg = "unknown field"
-            lines.append(f"  {field}{where}: {msg}")
-        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(lines)) from None
+        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(error_lines(exc, node))) from None
 
 
-def _line_of(node: yaml.Node | None, loc) -> int | None:
+def error_lines(exc: ValidationError, node: yaml.Node | None) -> list[str]:
+    """One line per error of a pydantic validation: the field's dotted path, its YAML line, what is wrong."""
+    lines = []
+    for err in exc.errors():
+        loc = [str(p) for p in err["loc"]]
+        field = ".".join(loc) or "(top level)"
+        line = line_of(node, err["loc"])
+        where = f" (line {line})" if line else ""
+        msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
+        lines.append(f"  {field}{where}: {msg}")
+    return lines
+
+
+def line_of(node: yaml.Node | None, loc) -> int | None:
     """1-based line of the deepest YAML node on the path ``loc``."""
     line = None
     for key in loc:

@@ -26,7 +26,7 @@ import time
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Future, wait
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable, Sequence
 
 from cosim.jobs import Job, client_env, failed_summary, run_job, scenario_sources, unpack
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
@@ -52,7 +52,7 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
                                  place=request.processes and request.node_cpus == "auto")
     try:
         jobs = _jobs(combos, request, out, ships=bool(executor and executor.ships))
-        prepare_caches(jobs)
+        prepare_caches((job.scenario_file, job.overrides) for job in jobs)
         if executor is None:
             _serial(jobs, record, stop, request.progress)
         else:
@@ -77,21 +77,22 @@ def _jobs(combos, request, out: Path, ships: bool) -> list[Job]:
                         overrides=(*request.overrides, *extra, "sweep={}"),
                         run_dir=str(out / "runs" / f"{i:03d}_{_safe(tag)}"), processes=request.processes,
                         node_cpus=request.node_cpus, realtime=request.realtime,
+                        hosts=str(Path(request.hosts).resolve()) if request.hosts else None,
                         progress=request.progress and serial, timeout_s=request.run_timeout_s,
                         env=client_env(), ship=ships, sources=sources, scenario_rel=scenario_rel))
     return jobs
 
 
-def prepare_caches(jobs: list[Job]) -> None:
-    """Let every component of every combination make what its runs would otherwise each make
-    (``Component.prepare``), once per distinct plugin and parameters. A combination that fails
-    here is left to fail in its run, where its row says why."""
+def prepare_caches(runs: Iterable[tuple[str | Path, Sequence[str]]]) -> None:
+    """Let every component of every run ``(scenario file, overrides)`` make what the runs would
+    otherwise each make (``Component.prepare``), once per distinct plugin and parameters. A run
+    that fails here is left to fail when it runs, where its row says why."""
     from cosim.plugins import lookup
 
     seen: set[str] = set()
-    for job in jobs:
+    for scenario_file, overrides in runs:
         try:
-            scenario = load_scenario(job.scenario_file, job.overrides)
+            scenario = load_scenario(scenario_file, list(overrides))
         except Exception:
             continue
         for spec in scenario.components.values():
