@@ -20,9 +20,12 @@ Both are driven through ``concurrent.futures`` (``submit`` returns a
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
+import threading
+import uuid
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
@@ -49,8 +52,11 @@ def cpu_groups(n: int) -> list[set[int]]:
 
 
 def _start_worker(pid_box, cpus: set[int] | None) -> None:
-    """A lane's worker, at its start: say its pid; keep to its CPUs (threads started later inherit them)."""
+    """A lane's worker, at its start: say its pid; keep to its CPUs (threads started later inherit them).
+    A Ctrl-C at the terminal reaches the workers too: an idle one ignores it, a run stops after its
+    tick (:func:`cosim.runner.stop_on_signals` while it runs) and the sweep starts no further one."""
     pid_box.value = os.getpid()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     if cpus:
         os.sched_setaffinity(0, cpus)
 
@@ -111,6 +117,16 @@ class LocalLanes:
         else:
             self.lanes[i].future = None
 
+    def stop_running(self, reason: str) -> None:
+        """Stop the runs under way after their tick. A Ctrl-C at the terminal has reached the workers
+        already; any other stop (a SIGTERM to ``cosim run``) is passed on to them as a SIGTERM."""
+        if reason == "stopped by SIGINT":
+            return
+        for lane in self.lanes:
+            if lane.future is not None and lane.pid.value:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(lane.pid.value, signal.SIGTERM)
+
     def abandon(self, future: Future) -> str:
         """Give up on a job past its deadline: kill its process (its lane is replaced)."""
         i = self._lane_of(future)
@@ -145,8 +161,9 @@ class DaskLanes:
         if address is None:
             import logging
 
-            # a run that kills its worker fails at once instead of being retried on the others
-            with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+            # a run that kills its worker fails at once instead of being retried on the others; the
+            # workers ignore a Ctrl-C at the terminal (the sweep stops their runs through stop_running)
+            with dask.config.set({"distributed.scheduler.allowed-failures": 0}), _sigint_ignored():
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                             dashboard_address=None, silence_logs=logging.ERROR)
             self.client = Client(self.cluster)
@@ -164,6 +181,8 @@ class DaskLanes:
                                 f"(none joined within {DASK_WORKERS_TIMEOUT_S:g} s)") from None
         self.executor = self.client.get_executor(pure=False)
         self.in_flight: set[Future] = set()
+        #: the Dask event a job watches: set, its run stops after the tick under way
+        self.stop_name = f"cosim-stop-{uuid.uuid4().hex}"
 
     def describe(self) -> str:
         where = f"the Dask scheduler at {self.address}" if self.address else "a local Dask cluster"
@@ -187,6 +206,12 @@ class DaskLanes:
     def release(self, future: Future) -> None:
         self.in_flight.discard(future)
 
+    def stop_running(self, reason: str) -> None:
+        """Stop the runs under way after their tick (the workers ignore the terminal's Ctrl-C)."""
+        from distributed import Event
+
+        Event(self.stop_name, client=self.client).set()
+
     def abandon(self, future: Future) -> str:
         """A task cannot be killed on its worker: stop waiting for it (its own timeout stops the run)."""
         self.in_flight.discard(future)
@@ -203,6 +228,19 @@ class DaskLanes:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+
+
+@contextlib.contextmanager
+def _sigint_ignored():
+    """SIGINT ignored while processes are started (they inherit it; Python then installs no handler)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def open_executor(spec: str | None, jobs: int, place: bool = False) -> LocalLanes | DaskLanes:

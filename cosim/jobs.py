@@ -52,6 +52,8 @@ class Job:
     env: tuple[tuple[str, str], ...] = ()
     #: run in a scratch folder and return its files (the worker may be another machine)
     ship: bool = False
+    #: the name of a Dask event that, once set, stops the run after its tick (a job on a Dask worker)
+    stop_event: str | None = None
     #: with ``ship``: (path relative to their common folder, bytes) of the scenario and its plugin files
     sources: tuple[tuple[str, bytes], ...] = ()
     scenario_rel: str = ""
@@ -140,6 +142,7 @@ def _run(job: Job, scenario_file: Path, run_dir: Path) -> tuple[dict, dict | Non
             timer = threading.Timer(job.timeout_s, stop.request, [f"run timeout ({job.timeout_s:g} s)"])
             timer.daemon = True
             timer.start()
+        watching = _watch_stop_event(job.stop_event, stop) if job.stop_event else None
         try:
             scenario = load_scenario(scenario_file, job.overrides)
             made_by = fingerprint(scenario, scenario_file).as_dict()
@@ -155,11 +158,34 @@ def _run(job: Job, scenario_file: Path, run_dir: Path) -> tuple[dict, dict | Non
         finally:
             if timer is not None:
                 timer.cancel()
+            if watching is not None:
+                watching.set()
     if job.timeout_s and stop.reason and stop.reason.startswith("run timeout") and summary["status"] == "interrupted":
         summary = {**summary, "status": "failed",
                    "error": f"did not finish within the run timeout of {job.timeout_s:g} s ({summary['error']})"}
         write_json(run_dir / "summary.json", summary)
     return summary, made_by
+
+
+def _watch_stop_event(name: str, stop) -> threading.Event:
+    """Request ``stop`` when the Dask event ``name`` is set (the sweep was stopped); returns the
+    event that ends the watching."""
+    from distributed import Event, get_client
+
+    client, done = get_client(), threading.Event()  # the task's client: only its own thread finds it
+
+    def watch() -> None:
+        event = Event(name, client=client)
+        while not done.is_set():
+            try:
+                if event.wait(timeout=0.5):
+                    stop.request("stopped: the sweep was interrupted")
+                    return
+            except Exception:  # the cluster went away: nothing to watch
+                return
+
+    threading.Thread(target=watch, name="cosim-stop-watch", daemon=True).start()
+    return done
 
 
 def failed_summary(error: str) -> dict[str, Any]:

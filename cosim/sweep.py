@@ -51,7 +51,8 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
         executor = open_executor(request.executor, request.jobs,
                                  place=request.processes and request.node_cpus == "auto")
     try:
-        jobs = _jobs(combos, request, out, ships=bool(executor and executor.ships))
+        jobs = _jobs(combos, request, out, ships=bool(executor and executor.ships),
+                     stop_event=getattr(executor, "stop_name", None))
         prepare_caches((job.scenario_file, job.overrides) for job in jobs)
         if executor is None:
             _serial(jobs, record, stop, request.progress)
@@ -63,7 +64,7 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
     return record.finish(stop.event.is_set(), request.progress)
 
 
-def _jobs(combos, request, out: Path, ships: bool) -> list[Job]:
+def _jobs(combos, request, out: Path, ships: bool, stop_event: str | None = None) -> list[Job]:
     scenario_file = Path(request.scenario_file).resolve()
     sources, scenario_rel = (), ""
     if ships:
@@ -79,7 +80,8 @@ def _jobs(combos, request, out: Path, ships: bool) -> list[Job]:
                         node_cpus=request.node_cpus, realtime=request.realtime,
                         hosts=str(Path(request.hosts).resolve()) if request.hosts else None,
                         progress=request.progress and serial, timeout_s=request.run_timeout_s,
-                        env=client_env(), ship=ships, sources=sources, scenario_rel=scenario_rel))
+                        env=client_env(), ship=ships, sources=sources, scenario_rel=scenario_rel,
+                        stop_event=stop_event))
     return jobs
 
 
@@ -125,8 +127,12 @@ def _parallel(jobs: list[Job], record: "SweepRecord", stop, executor, progress: 
         bar.write(f"cosim: {len(jobs)} runs on {executor.describe()}")
     pending = deque(jobs)
     running: dict[Future, tuple[Job, float]] = {}
+    stopping = False
     try:
         while pending or running:
+            if stop.event.is_set() and not stopping:
+                stopping = True
+                executor.stop_running(stop.reason or "stopped")
             while pending and not stop.event.is_set() and executor.free():
                 job = pending.popleft()
                 running[executor.submit(run_job, job)] = (job, time.monotonic())

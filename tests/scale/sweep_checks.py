@@ -26,3 +26,30 @@ def without_timings(rows: list[dict]) -> list[dict]:
 
 def logs_of(out: Path) -> dict[str, bytes]:
     return {d.name: (d / "log.csv").read_bytes() for d in sorted((out / "runs").iterdir())}
+
+
+def stop_a_parallel_sweep(folder: Path, *executor: str, scratch: Path | None = None) -> tuple[int, list[dict]]:
+    """Start a sweep of two paced 30 s runs (``executor``: more ``cosim run`` arguments), send SIGTERM
+    to ``cosim run`` alone once both runs have recorded a second (under ``scratch``: where the
+    workers write the run folders they ship back), return its exit status and rows."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    sweep = sweep_arg({"components.camera.params.interval_s": [0.02, 0.04]})
+    started = time.time()
+    proc = subprocess.Popen([sys.executable, "-m", "cosim.cli", "run", str(TOY), "--out", str(folder), "--quiet",
+                             "--set", "duration_s=30", "--set", sweep, "--realtime", "1", *executor])
+    deadline = time.monotonic() + 60
+
+    def logs() -> list[Path]:
+        if scratch is None:
+            return [folder / "runs" / name / "log.csv" for name in ("000_interval_s=0.02", "001_interval_s=0.04")]
+        return [f for f in scratch.glob("cosim-run-*/00[01]_interval_s=0.0[24]/log.csv") if f.stat().st_mtime > started]
+
+    while not (len(logs()) == 2 and all(f.is_file() and f.read_text().count("\n") > 50 for f in logs())):
+        assert time.monotonic() < deadline and proc.poll() is None, "the runs did not start"
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    return proc.wait(timeout=60), rows_of(folder)

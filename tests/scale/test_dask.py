@@ -3,11 +3,14 @@ the rows and logs of the serial sweep; a dead worker is one failed row; an unrea
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 import pytest
 
 from cosim.cli import main
 
-from sweep_checks import FAULTY, TOY, logs_of, rows_of, sweep_arg, without_timings
+from sweep_checks import FAULTY, TOY, logs_of, rows_of, stop_a_parallel_sweep, sweep_arg, without_timings
 
 pytest.importorskip("distributed", reason="the cluster extra (dask[distributed]) is not installed")
 
@@ -44,3 +47,12 @@ def test_an_unreachable_dask_scheduler_is_named(tmp_path, capsys, monkeypatch):
     assert main(["run", str(TOY), "--out", str(tmp_path), "--set", sweep, "--executor", "dask://127.0.0.1:9"]) == 2
     err = capsys.readouterr().err
     assert "--executor dask://127.0.0.1:9: no Dask scheduler answered at 127.0.0.1:9 within 1 s" in err
+
+
+def test_a_stopped_sweep_stops_the_runs_on_its_dask_workers(tmp_path):
+    code, rows = stop_a_parallel_sweep(tmp_path, "--executor", "dask", "--jobs", "2",
+                                       scratch=Path(tempfile.gettempdir()))
+    assert code == 130
+    for row in rows:
+        assert row["status"] == "interrupted" and "the sweep was interrupted" in row["error"]
+        assert 50 < (tmp_path / row["dir"] / "log.csv").read_text().count("\n") < 1500

@@ -13,7 +13,7 @@ import pytest
 from cosim.cli import main
 from cosim.executors import cpu_groups
 
-from sweep_checks import FAULTY, TOY, logs_of, rows_of, sweep_arg, without_timings
+from sweep_checks import FAULTY, TOY, logs_of, rows_of, stop_a_parallel_sweep, sweep_arg, without_timings
 
 INTERVALS = sweep_arg({"components.camera.params.interval_s": [0.02, 0.04, 0.06, 0.08]})
 
@@ -33,7 +33,7 @@ def test_two_jobs_give_the_rows_and_logs_of_one_after_another(tmp_path):
 
 CASES = sweep_arg({"case": [
     {"label": "ok", "components.relay.params.fail_at_s": 100},
-    {"label": "crash", "components.relay.params.mode": "exit"},
+    {"label": "crash", "components.relay.params.mode": "exit", "components.relay.params.fail_at_s": 2.5},
     {"label": "raise", "components.relay.params.mode": "raise"},
     {"label": "hang", "components.relay.params.mode": "hang", "components.relay.timeout_s": 0.5},
     {"label": "ok2", "components.relay.params.fail_at_s": 100},
@@ -49,10 +49,10 @@ def test_a_run_that_fails_crashes_or_hangs_is_one_failed_row_and_the_others_go_o
     assert rows["raise"]["status"] == "failed" and "deliberate failure" in rows["raise"]["error"]
     assert rows["hang"]["status"] == "failed" and "(hung)" in rows["hang"]["error"]
     assert "3 of 5 sweep runs did not finish" in capsys.readouterr().err
-    # the crashed run's folder says so, with what it recorded before its process died
+    # the crashed run's folder says so, with what it recorded before its process died (all but the last second)
     crashed = tmp_path / rows["crash"]["dir"]
     assert '"status": "failed"' in (crashed / "summary.json").read_text()
-    assert (crashed / "log.csv").read_text().count("\n") > 10
+    assert (crashed / "log.csv").read_text().count("\n") > 50
 
 
 def test_a_run_past_the_run_timeout_is_stopped_and_failed(tmp_path):
@@ -112,3 +112,11 @@ def test_bad_jobs_and_executor_are_named(tmp_path, capsys):
     assert "--executor spark: expected local, dask or dask://HOST:PORT" in capsys.readouterr().err
     assert main(["run", str(TOY), "--out", str(tmp_path), "--processes", "--node-cpus", "1", "--jobs", "2"]) == 2
     assert "every parallel run's nodes would share these CPUs" in capsys.readouterr().err
+
+
+def test_a_stopped_parallel_sweep_stops_its_runs_after_their_tick(tmp_path):
+    code, rows = stop_a_parallel_sweep(tmp_path, "--jobs", "2")
+    assert code == 130
+    for row in rows:  # each run stopped within seconds of 30, its record kept
+        assert row["status"] == "interrupted" and "stopped by SIGTERM" in row["error"]
+        assert 50 < (tmp_path / row["dir"] / "log.csv").read_text().count("\n") < 1500
