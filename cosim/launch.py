@@ -58,7 +58,8 @@ def node_commands(scenario_file: Path, overrides: list[str], order: list[str], r
                   run_dir: Path, fingerprint: Fingerprint, cpus: str | None, free_endpoint,
                   hosts: HostsPlan | None) -> list[NodeCommand]:
     """A command per component in ``order``: without ``hosts``, every node on this machine listening on
-    ``free_endpoint()`` and running on ``cpus``; with them, as placed there."""
+    ``free_endpoint()`` and running on ``cpus``; with them, as placed there (a node started here without
+    CPUs of its own runs on ``cpus``)."""
     commands, earlier = [], [scheduler]
     for name in order:
         place = hosts.nodes[name] if hosts else None
@@ -70,7 +71,7 @@ def node_commands(scenario_file: Path, overrides: list[str], order: list[str], r
         for other in earlier:
             args += ["--connect", other]
         earlier.append(listen)
-        node_cpus = place.cpus if place else cpus
+        node_cpus = place.cpus if place and place.cpus else None if remote else cpus  # here: --node-cpus
         if node_cpus:
             args += ["--cpus", node_cpus]
         if place and place.tls:
