@@ -30,6 +30,7 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
 from cosim.errors import UserError
+from cosim.jobs import warm_up
 
 #: How long ``dask://HOST:PORT`` waits for the scheduler to answer, and for a worker to join it.
 DASK_CONNECT_TIMEOUT_S = 10.0
@@ -67,6 +68,7 @@ class _Lane:
         self.cpus = cpus
         self.pid = ctx.RawValue("q", 0)
         self.pool = ProcessPoolExecutor(1, mp_context=ctx, initializer=_start_worker, initargs=(self.pid, cpus))
+        self.pool.submit(warm_up)  # imports while the client prepares the caches; a job queues behind it
         self.future: Future | None = None
 
     def retire(self) -> None:
@@ -241,6 +243,18 @@ def _sigint_ignored():
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def workers(jobs: int, spec: str | None = None):
+    """Worker processes shared by several sweeps (``cosim reproduce``, ``cosim dataset``): pass
+    what this yields as ``RunRequest.workers``; None with ``jobs == 1`` and no ``spec`` (serial)."""
+    executor = None if jobs == 1 and spec is None else open_executor(spec, jobs)
+    try:
+        yield executor
+    finally:
+        if executor is not None:
+            executor.close()
 
 
 def open_executor(spec: str | None, jobs: int, place: bool = False) -> LocalLanes | DaskLanes:

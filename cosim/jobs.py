@@ -101,6 +101,15 @@ def _materialise(job: Job) -> Path:
     return root / job.scenario_rel
 
 
+def warm_up() -> None:
+    """Import what every run needs (the runner, the bus, the recorder, the plugins), so a new worker
+    does it while the client still prepares the caches."""
+    from cosim.plugins import get_plugin_manager
+    from cosim.runner import run_one  # noqa: F401
+
+    get_plugin_manager()
+
+
 def run_job(job: Job) -> dict[str, Any]:
     """Run ``job``; returns ``{"index", "summary", "host", "fingerprint", "files", "stuck"}``.
 

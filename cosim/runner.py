@@ -68,6 +68,9 @@ class RunRequest:
     run_timeout_s: float | None = None
     #: with ``processes``: a HOSTS.yaml placing the nodes on machines (see :mod:`cosim.hosts`)
     hosts: Path | None = None
+    #: open workers a sweep runs on instead of its own (several sweeps in a row: see
+    #: :func:`cosim.executors.workers`)
+    workers: Any = None
 
 
 @contextlib.contextmanager

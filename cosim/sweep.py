@@ -43,13 +43,12 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
     combos = sweep_overrides(scenario)
     clear_earlier_sweep(out / "runs")
     record = SweepRecord(scenario, out, len(combos))
-    parallel = request.jobs > 1 or request.executor is not None
-    executor = None
-    if parallel:
+    executor, own = request.workers, False
+    if executor is None and (request.jobs > 1 or request.executor is not None):
         from cosim.executors import open_executor
 
-        executor = open_executor(request.executor, request.jobs,
-                                 place=request.processes and request.node_cpus == "auto")
+        executor, own = open_executor(request.executor, request.jobs,
+                                      place=request.processes and request.node_cpus == "auto"), True
     try:
         jobs = _jobs(combos, request, out, ships=bool(executor and executor.ships),
                      stop_event=getattr(executor, "stop_name", None))
@@ -59,7 +58,7 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
         else:
             _parallel(jobs, record, stop, executor, request.progress)
     finally:
-        if executor is not None:
+        if own:
             executor.close()
     return record.finish(stop.event.is_set(), request.progress)
 
@@ -70,7 +69,7 @@ def _jobs(combos, request, out: Path, ships: bool, stop_event: str | None = None
     if ships:
         base = load_scenario(scenario_file, request.overrides)
         sources, scenario_rel = scenario_sources(scenario_file, [scenario_file.parent / p for p in base.plugins])
-    serial = request.jobs == 1 and request.executor is None
+    serial = request.jobs == 1 and request.executor is None and request.workers is None
     jobs = []
     for i, (labels, extra) in enumerate(combos):
         tag = "_".join(f"{k}={v}" for k, v in labels.items())
