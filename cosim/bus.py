@@ -23,6 +23,8 @@ import functools
 import json
 import struct
 import time
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, TypeVar
 
 import numpy as np
@@ -32,6 +34,9 @@ from cosim.errors import UserError
 
 ROOT = "cosim"
 RESERVED_NAMES = ("alive", "ctl")
+
+#: zenoh's retry of a link that is not up yet (default: from 1 s up to 4 s between tries)
+CONNECT_RETRY = {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2}
 
 _F64 = np.dtype("<f8")
 _T = TypeVar("_T")
@@ -61,7 +66,37 @@ def poll(fetch: Callable[[], _T | None], timeout_s: float) -> _T | None:
     return None
 
 
-def open_session(listen: list[str] | None = None, connect: list[str] | None = None) -> zenoh.Session:
+@dataclass(frozen=True)
+class TlsFiles:
+    """The PEM files of mutual TLS between the machines of a run: the run's CA certificate, and this
+    host's certificate (signed by that CA, naming the host's address) and private key."""
+
+    ca: Path
+    cert: Path
+    key: Path
+
+    def check(self, where: str) -> None:
+        """A missing file is a :class:`UserError` naming it and ``where`` it was given."""
+        for what, path in (("CA certificate", self.ca), ("certificate", self.cert), ("private key", self.key)):
+            if not Path(path).is_file():
+                raise UserError(f"{where}: the {what} {path} does not exist (cosim certs HOSTS.yaml makes a "
+                                "run's certificates)")
+
+
+def _insert_tls(conf: zenoh.Config, tls: TlsFiles) -> None:
+    """Every tls/ link both ways with this host's certificate, and only with a peer whose certificate
+    the run's CA signed (mutual TLS); a peer's certificate must name the address it is reached at."""
+    base = "transport/link/tls/"
+    for key, path in (("root_ca_certificate", tls.ca), ("listen_certificate", tls.cert),
+                      ("listen_private_key", tls.key), ("connect_certificate", tls.cert),
+                      ("connect_private_key", tls.key)):
+        conf.insert_json5(base + key, json.dumps(str(Path(path).resolve())))
+    conf.insert_json5(base + "enable_mtls", "true")
+    conf.insert_json5(base + "verify_name_on_connect", "true")
+
+
+def open_session(listen: list[str] | None = None, connect: list[str] | None = None,
+                 tls: TlsFiles | None = None) -> zenoh.Session:
     """Open a zenoh session.
 
     With no endpoints this is the embedded default: an in-process peer with
@@ -73,7 +108,9 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
     producer's process to its consumer's. Peers forward nothing for others and
     gossip is off, so the links are exactly the ones given. They use zenoh's
     low-latency transport (no QoS priorities, no batching): every message is a
-    step someone waits for.
+    step someone waits for. With ``tls`` (a run over machines, ``tls/``
+    endpoints) every link is mutual TLS with the run's certificates: a peer
+    without a certificate of the run's CA can neither connect nor publish.
     """
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
@@ -86,9 +123,17 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
                             "expected <protocol>/<address>, e.g. tcp/127.0.0.1:7447") from None
     if listen or connect:  # every process of a run must agree on the transport
         conf.insert_json5("scouting/gossip/enabled", "false")
+        # a node may connect to one that is not up yet (started later, on another machine): retry often
+        conf.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))
         conf.insert_json5("transport/unicast/lowlatency", "true")
         conf.insert_json5("transport/unicast/qos/enabled", "false")
-    return zenoh.open(conf)
+    if tls is not None:
+        _insert_tls(conf, tls)
+    try:
+        return zenoh.open(conf)
+    except zenoh.ZError as exc:  # e.g. a certificate or key zenoh cannot read
+        where = " (with the TLS files " + ", ".join(map(str, (tls.ca, tls.cert, tls.key))) + ")" if tls else ""
+        raise UserError(f"cannot open the zenoh session listening on {list(listen or [])}{where}: {exc}") from None
 
 
 def publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:

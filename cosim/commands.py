@@ -1,4 +1,4 @@
-"""The core commands: run, validate, schema, plugins, replay, node."""
+"""The core commands: run, validate, schema, plugins, replay, node, certs, dataset, reproduce."""
 
 from __future__ import annotations
 
@@ -29,6 +29,15 @@ def add_commands(sub) -> None:
                    help="pace the ticks on the wall clock (FACTOR times real time, default 1); late ticks "
                         "are skipped and counted in summary.json's 'realtime'")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary lines (errors only)")
+    p.add_argument("--hosts", type=Path, default=None, metavar="HOSTS.yaml",
+                   help="with --processes: place the nodes on machines (host, endpoint, CPUs per component; "
+                        "launched over ssh or printed to start by hand; mutual TLS between machines)")
+    add_jobs_argument(p, "a sweep's runs at a time, each in a worker process")
+    p.add_argument("--executor", default=None, metavar="local|dask|dask://HOST:PORT",
+                   help="where a sweep's runs execute: local worker processes (default), a local Dask "
+                        "cluster of --jobs workers, or the Dask scheduler at HOST:PORT (needs the cluster extra)")
+    p.add_argument("--run-timeout", type=float, default=None, metavar="S",
+                   help="a sweep's run still going after S seconds of wall time is stopped and counted failed")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("validate", help="check a scenario and print its wiring as a table")
@@ -64,7 +73,18 @@ def add_commands(sub) -> None:
     p.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
                    help="the run's output folder, for a component that writes files of its own")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--fingerprint", default=None, metavar="SCENARIO.CODE.ARTIFACTS",
+                   help="the run's fingerprint: refuse to join (exit status 2) when this node's differs")
+    p.add_argument("--tls-ca", type=Path, default=None, metavar="PEM", help="the run's CA certificate (mutual TLS)")
+    p.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this host's certificate")
+    p.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this host's private key")
     p.set_defaults(func=cmd_node)
+
+    p = sub.add_parser("certs", help="make a run's CA and one certificate per host of a HOSTS.yaml (mutual TLS)")
+    p.add_argument("hosts", type=Path, help="the hosts file; the files go where its tls.ca and hosts.*.cert/key say")
+    p.add_argument("--days", type=int, default=365, help="validity of the certificates (default 365)")
+    p.add_argument("--force", action="store_true", help="replace existing files")
+    p.set_defaults(func=cmd_certs)
 
     add_dataset_command(sub)
     add_reproduce_command(sub)
@@ -79,8 +99,20 @@ def cmd_run(args) -> int:
         raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
     if args.node_cpus is not None and not args.processes:
         raise UserError(f"--node-cpus {args.node_cpus}: only applies with --processes (the nodes' CPUs)")
+    jobs = parse_jobs(args.jobs, default=1 if args.executor in (None, "local") else "auto")
+    if jobs > 1 and args.processes and args.node_cpus not in (None, "auto", "none"):
+        raise UserError(f"--node-cpus {args.node_cpus} with --jobs {args.jobs}: every parallel run's nodes would "
+                        "share these CPUs; use auto (each run's nodes on CPUs of their own) or none")
+    if args.hosts is not None and not args.processes:
+        raise UserError(f"--hosts {args.hosts}: only applies with --processes (it places the nodes)")
+    if args.hosts is not None and (jobs > 1 or args.executor):
+        raise UserError(f"--hosts {args.hosts}: a run over machines takes the endpoints its hosts file names, "
+                        "so its sweep runs one at a time (no --jobs, no --executor)")
+    if args.run_timeout is not None and not args.run_timeout > 0:
+        raise UserError(f"--run-timeout {args.run_timeout:g}: the time must be > 0 [s]")
     summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
-                             args.node_cpus or "auto", args.realtime))
+                             args.node_cpus or "auto", args.realtime, jobs=jobs, executor=args.executor,
+                             run_timeout_s=args.run_timeout, hosts=args.hosts))
     if not args.quiet:
         _print_run(summary, out)
     if summary.get("status") == "interrupted":
@@ -92,6 +124,21 @@ def cmd_run(args) -> int:
         print(f"cosim run: {len(failed)} of {len(summary['sweep'])} sweep runs did not finish: "
               + ", ".join(f"{row['dir']} ({row['status']})" for row in failed), file=sys.stderr)
     return 1 if failed else 0
+
+
+def add_jobs_argument(parser, what: str) -> None:
+    parser.add_argument("--jobs", default=None, metavar="N|auto",
+                        help=f"{what} (auto: one per CPU this process may use; default 1)")
+
+
+def parse_jobs(text: str | None, default: int | str = 1) -> int:
+    """``--jobs``: a whole number >= 1, or ``auto`` (the CPUs this process may use)."""
+    text = str(default) if text is None else text
+    if text == "auto":
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if not text.isdigit() or int(text) < 1:
+        raise UserError(f"--jobs {text}: expected a whole number >= 1 or auto")
+    return int(text)
 
 
 def _print_run(summary: dict, out: Path) -> None:
@@ -173,6 +220,8 @@ def _call_viewer(command: list[str]) -> int:
 
 
 def cmd_node(args) -> int:
+    from cosim.bus import TlsFiles
+    from cosim.fingerprint import Fingerprint
     from cosim.node import serve
     from cosim.scenario import load_scenario
     from cosim.wiring import build_wiring
@@ -181,8 +230,28 @@ def cmd_node(args) -> int:
     if args.component not in scenario.components:
         raise UserError(f"no component {args.component!r} in {args.scenario} "
                         f"(have: {', '.join(scenario.components)})")
+    tls_args = (args.tls_ca, args.tls_cert, args.tls_key)
+    if any(tls_args) and not all(tls_args):
+        raise UserError("--tls-ca, --tls-cert and --tls-key go together (mutual TLS needs all three)")
+    try:
+        expected = Fingerprint.decode(args.fingerprint) if args.fingerprint else None
+    except ValueError as exc:
+        raise UserError(f"--fingerprint: {exc}") from None
     return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen,
-                 args.cpus, args.run_dir)
+                 args.cpus, args.run_dir, expected, TlsFiles(*tls_args) if all(tls_args) else None,
+                 args.scenario)
+
+
+def cmd_certs(args) -> int:
+    from cosim.certs import make_certificates
+
+    if args.days < 1:
+        raise UserError(f"--days {args.days}: expected a whole number >= 1")
+    files = make_certificates(args.hosts, args.days, args.force)
+    print("wrote " + ", ".join(map(str, files)))
+    print(f"copy to each host its own .pem and .key and the CA certificate {files[0]}; keep the CA's key "
+          f"{files[1]} on none of them (it signs certificates that admit a peer to the run)")
+    return 0
 
 
 def add_dataset_command(sub) -> None:
@@ -190,13 +259,14 @@ def add_dataset_command(sub) -> None:
     p.add_argument("--quick", action="store_true", help="40 s runs instead of 290 s each")
     p.add_argument("--out", type=Path, default=None, help="folder (default: the cache, $COSIM_CACHE or ./cache)")
     p.add_argument("--force", action="store_true", help="regenerate even if the cache is current")
+    add_jobs_argument(p, "runs at a time, each in a worker process")
     p.set_defaults(func=cmd_dataset)
 
 
 def cmd_dataset(args) -> int:
     from cosim.dataset import ensure_dataset
 
-    ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force)
+    ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force, jobs=parse_jobs(args.jobs))
     for split in ("training", "test", "validation"):
         files = getattr(ds, split)
         print(f"{split} ({len(files)} logs):")
@@ -211,6 +281,7 @@ def add_reproduce_command(sub) -> None:
     p.add_argument("--quick", action="store_true", help="shortened experiments (a few minutes in all)")
     p.add_argument("--readme", type=Path, default=None, metavar="README.md",
                    help="also put the tables into this README's results block (plots go to docs/results/)")
+    add_jobs_argument(p, "each sweep's runs at a time, each in a worker process")
     p.set_defaults(func=cmd_reproduce)
 
 
@@ -221,7 +292,7 @@ def cmd_reproduce(args) -> int:
     if args.readme and not args.readme.is_file():
         raise UserError(f"--readme {args.readme} does not exist")
 
-    report = reproduce(args.out, quick=args.quick)
+    report = reproduce(args.out, quick=args.quick, jobs=parse_jobs(args.jobs))
     print(f"report: {args.out / 'report.md'} (and report.html, report.json); {report['wall_time_s']:.0f} s")
     empty = filled((args.out / "report.md").read_text())
     if empty:

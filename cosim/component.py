@@ -93,6 +93,22 @@ class Component:
         ``cosim validate`` and before any component is set up, so bad input fails before a run starts."""
 
     @classmethod
+    def prepare(cls, params: Mapping[str, Any]) -> None:
+        """Make, once and before runs fan out over processes or machines, what ``setup`` would
+        otherwise make in each of them (a model trained on demand, a data set generated, the
+        plant's FMU built), so parallel runs never race to make the same thing. Called in the
+        process that starts the runs, with the scenario's ``params`` (plus ``dt``) of every
+        combination of a sweep; must be cheap when everything is made already. Default: nothing."""
+
+    @classmethod
+    def artifacts(cls, params: Mapping[str, Any]) -> list:
+        """The files besides code that this component's behaviour depends on for these
+        ``params`` (plus ``dt``): a plant's FMU, a model file. Their content enters the run's
+        fingerprint (see :mod:`cosim.fingerprint`), which sweep rows record and every node of
+        a run over machines checks. Default: none."""
+        return []
+
+    @classmethod
     def recording_views(cls, name: str) -> list:
         """rerun blueprint views (``rerun.blueprint`` views) this component, named ``name`` in
         the scenario, adds to the run's recording layout, for what it logs itself (see

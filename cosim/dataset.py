@@ -13,6 +13,7 @@ The cache folder is ``$COSIM_CACHE`` or ``./cache``.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -100,16 +101,15 @@ class CacheLock:
 
 
 def ensure_dataset(quick: bool = False, folder: Path | None = None, force: bool = False,
-                   progress: bool = True) -> PaperDataset:
-    """The cached dataset; splits that are missing or stale are generated first (progress on stderr)."""
+                   progress: bool = True, jobs: int = 1, workers=None) -> PaperDataset:
+    """The cached dataset; splits that are missing or stale are generated first (progress on stderr),
+    ``jobs`` runs at a time on open ``workers`` or its own (see :mod:`cosim.sweep`)."""
     folder = Path(folder) if folder else cache_dir() / ("paper_dataset_quick" if quick else "paper_dataset")
     with CacheLock(folder.parent / f".{folder.name}.lock"):
-        return _ensure(folder, quick, force, progress)
+        return _ensure(folder, quick, force, progress, jobs, workers)
 
 
-def _ensure(folder: Path, quick: bool, force: bool, progress: bool) -> PaperDataset:
-    from cosim.runner import RunRequest, run
-
+def _ensure(folder: Path, quick: bool, force: bool, progress: bool, jobs: int, workers) -> PaperDataset:
     manifest = folder / "manifest.json"
     stamp = _fingerprint(quick)
     data = json.loads(manifest.read_text()) if manifest.is_file() and not force else {}
@@ -123,13 +123,27 @@ def _ensure(folder: Path, quick: bool, force: bool, progress: bool) -> PaperData
         "test": (PAPER_SCENARIOS / "training.yaml", [f"duration_s={TEST_DURATION_S[quick]}", f"seed={TEST_SEED}"]),
         "validation": (PAPER_SCENARIOS / "validation.yaml", duration),
     }
-    for split, (scenario, overrides) in plans.items():
-        if data.get(split) and all((folder / f).is_file() for f in data[split]):
-            continue
-        print(f"generating the paper dataset's {split} logs in {folder}", file=sys.stderr)
-        out = folder / "runs" / split
-        run(RunRequest(scenario, out, overrides, False, progress))
-        logs = sorted(out.glob("runs/*/log.csv")) or [out / "log.csv"]
-        data[split] = [str(f.relative_to(folder)) for f in logs]
-        manifest.write_text(json.dumps(data, indent=2))
+    missing = [s for s in plans if not (data.get(s) and all((folder / f).is_file() for f in data[s]))]
+    if not missing:
+        return PaperDataset(*[[folder / f for f in data[s]] for s in plans], folder)
+    from cosim.executors import workers as open_workers
+
+    with contextlib.ExitStack() as stack:
+        if workers is None:  # one set of workers for every split
+            workers = stack.enter_context(open_workers(jobs))
+        for split in missing:
+            _generate(folder, split, *plans[split], progress, jobs, workers, data, manifest)
     return PaperDataset(*[[folder / f for f in data[s]] for s in plans], folder)
+
+
+def _generate(folder: Path, split: str, scenario: Path, overrides: list[str], progress: bool, jobs: int,
+              workers, data: dict, manifest: Path) -> None:
+    """Run one split's scenario into the cache and note its logs in the manifest."""
+    from cosim.runner import RunRequest, run
+
+    print(f"generating the paper dataset's {split} logs in {folder}", file=sys.stderr)
+    out = folder / "runs" / split
+    run(RunRequest(scenario, out, overrides, False, progress, jobs=jobs, workers=workers))
+    logs = sorted(out.glob("runs/*/log.csv")) or [out / "log.csv"]
+    data[split] = [str(f.relative_to(folder)) for f in logs]
+    manifest.write_text(json.dumps(data, indent=2))

@@ -40,6 +40,7 @@ import zenoh
 
 from cosim import bus
 from cosim.component import ComponentFault
+from cosim.fingerprint import Fingerprint, differences, fingerprint
 from cosim.placement import parse_cpu_list, pin_this_process
 from cosim.portcache import PortStore, expected_stamp
 from cosim.scenario import Scenario
@@ -48,6 +49,10 @@ from cosim.stepper import Stepper, setup_component
 from cosim.wiring import Wiring
 
 IDLE_TIMEOUT_S = 120.0
+#: How long a node waits for its route to the scheduler before it replies anyway.
+ROUTE_WAIT_S = 30.0
+#: How long a node that refuses to join waits for that route to say so.
+REFUSAL_WAIT_S = 5.0
 
 
 class _Node:
@@ -146,17 +151,25 @@ class _Node:
 
 
 def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str],
-          listen: list[str], cpus: str | None = None, run_dir: Path | None = None) -> int:
+          listen: list[str], cpus: str | None = None, run_dir: Path | None = None,
+          expected: Fingerprint | None = None, tls: bus.TlsFiles | None = None,
+          scenario_file: Path | None = None) -> int:
     """Serve component ``name`` until told to stop; returns an exit status.
 
     ``connect``: the scheduler's endpoint and those of the nodes started
     before this one; ``listen``: where the nodes started after it connect;
     ``cpus``: where to step (see :mod:`cosim.placement`), once set up on any CPU;
-    ``run_dir``: the run's output folder, for a component that writes files of its own.
+    ``run_dir``: the run's output folder, for a component that writes files of its own;
+    ``expected``: the run's fingerprint: with another of its own the node refuses to join
+    (exit status 2); ``tls``: this host's files for mutual TLS with the run's other machines;
+    ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint).
     """
     if cpus is not None:
         parse_cpu_list(cpus)  # a bad list fails before anything starts
-    session = bus.open_session(listen=listen, connect=connect)
+    if tls is not None:
+        tls.check(f"cosim node {name}")
+    mine = fingerprint(scenario, scenario_file or Path("."))
+    session = bus.open_session(listen=listen, connect=connect, tls=tls)
     reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
     edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
 
@@ -167,6 +180,25 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         payload, attachment = bus.encode_reply(msg, values)
         reply_pub.put(payload, attachment=attachment)
 
+    # the scheduler's reply subscriber may not be known here yet (a link to another machine, with its TLS
+    # handshake, can take longer than setting up): a reply sent before would be lost
+    def route_to_scheduler(timeout_s: float) -> bool:
+        return bool(bus.poll(lambda: reply_pub.matching_status.matching or None, timeout_s))
+
+    if expected is not None and mine != expected:
+        why = "; ".join(differences(mine, expected))
+        print(f"cosim node {name}: refusing to join run {run_id}: this node runs another experiment: {why}",
+              file=sys.stderr)
+        route_to_scheduler(REFUSAL_WAIT_S)
+        reply(-1, "ready", f"refused to join: its node runs another experiment than the run's: {why}")
+        time.sleep(0.5)  # let the reply leave before the session closes
+        session.close()
+        return 2
+    if not route_to_scheduler(ROUTE_WAIT_S):  # the scheduler is gone (or was never there)
+        print(f"cosim node {name}: no scheduler of run {run_id} reachable at {', '.join(connect)} within "
+              f"{ROUTE_WAIT_S:g} s; exiting", file=sys.stderr)
+        session.close()
+        return 1
     try:
         component = setup_component(scenario, wiring, name, run_dir)
         if cpus is not None:  # the threads started from here on (subscribers') inherit it
@@ -201,7 +233,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
 
         signal.signal(signal.SIGTERM, on_term)
         signal.signal(signal.SIGINT, on_term)
-    reply(-1, "ready")
+    reply(-1, "ready", fingerprint=mine.as_dict())
     status = 0
     try:
         while not node.stopped.wait(1.0):

@@ -40,6 +40,9 @@ KINDS = {
     "effect": "cosim_register_effects",
 }
 
+#: The module name of a plugin file loaded by :func:`load_plugin_file` starts so.
+USER_PLUGIN_PREFIX = "cosim_user_plugin_"
+
 _pm: pluggy.PluginManager | None = None
 
 
@@ -121,7 +124,7 @@ def load_plugin_file(path: str | Path) -> Any:
     path = Path(path)
     if not path.is_file():
         raise PluginError(f"plugin file {path} does not exist")
-    mod_name = f"cosim_user_plugin_{abs(hash(str(path.resolve())))}"
+    mod_name = f"{USER_PLUGIN_PREFIX}{abs(hash(str(path.resolve())))}"
     pm = get_plugin_manager()
     if pm.has_plugin(mod_name):
         return pm.get_plugin(mod_name)

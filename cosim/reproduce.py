@@ -69,11 +69,12 @@ def _scenario_copy(name: str, out_dir: Path, quick: bool) -> Path:
     return path
 
 
-def _run_scenario(name: str, out_dir: Path, quick: bool) -> dict:
+def _run_scenario(name: str, out_dir: Path, quick: bool, jobs: int = 1, workers=None) -> dict:
     from cosim.runner import RunRequest, run
 
     scenario = _scenario_copy(name, out_dir, quick)
-    return run(RunRequest(scenario, out_dir / "runs" / Path(name).stem, [], False, progress=True))
+    return run(RunRequest(scenario, out_dir / "runs" / Path(name).stem, [], False, progress=True, jobs=jobs,
+                          workers=workers))
 
 
 def _train(dataset, out_dir: Path, quick: bool) -> dict:
@@ -151,8 +152,9 @@ def _trajectory_plots(key: str, out_dir: Path) -> list[str]:
     return [str(target.relative_to(out_dir))]
 
 
-def reproduce(out_dir: Path, quick: bool = False) -> dict:
-    """Run everything; returns the report dict (also written to ``out_dir``)."""
+def reproduce(out_dir: Path, quick: bool = False, jobs: int = 1) -> dict:
+    """Run everything, the runs of each sweep ``jobs`` at a time; returns the report dict (also
+    written to ``out_dir``)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     if quick:
@@ -160,25 +162,28 @@ def reproduce(out_dir: Path, quick: bool = False) -> dict:
     wall0 = time.perf_counter()
     timings: dict[str, float] = {}
     results: dict[str, Any] = {}
-    steps = [
-        ("dataset", lambda: ensure_dataset(quick=quick)),
-        ("table2", lambda: _train(results["dataset"], out_dir, quick)),
-        ("table3", lambda: _compare(results["dataset"], out_dir)),
-        ("table4", lambda: _run_scenario("realtime_prediction.yaml", out_dir, quick)),
-        ("fig6", lambda: _run_scenario("feedback_sweep.yaml", out_dir, quick)),
-        ("racetrack", lambda: {**_run_scenario("controllers_racetrack.yaml", out_dir, quick),
-                               "plots": _trajectory_plots("racetrack", out_dir)}),
-        ("helix", lambda: {**_run_scenario("controllers_helix.yaml", out_dir, quick),
-                           "plots": _trajectory_plots("helix", out_dir)}),
-    ]
-    for i, (key, step) in enumerate(steps, 1):
-        _say(f"[{i}/{len(steps)}] {key} ...")
-        t0 = time.perf_counter()
-        results[key] = step()
-        timings[key] = round(time.perf_counter() - t0, 2)
+    from cosim.executors import workers as open_workers
+
+    with open_workers(jobs) as pool:  # one set of worker processes for every sweep
+        steps = [
+            ("dataset", lambda: ensure_dataset(quick=quick, jobs=jobs, workers=pool)),
+            ("table2", lambda: _train(results["dataset"], out_dir, quick)),
+            ("table3", lambda: _compare(results["dataset"], out_dir)),
+            ("table4", lambda: _run_scenario("realtime_prediction.yaml", out_dir, quick, jobs, pool)),
+            ("fig6", lambda: _run_scenario("feedback_sweep.yaml", out_dir, quick, jobs, pool)),
+            ("racetrack", lambda: {**_run_scenario("controllers_racetrack.yaml", out_dir, quick, jobs, pool),
+                                   "plots": _trajectory_plots("racetrack", out_dir)}),
+            ("helix", lambda: {**_run_scenario("controllers_helix.yaml", out_dir, quick, jobs, pool),
+                               "plots": _trajectory_plots("helix", out_dir)}),
+        ]
+        for i, (key, step) in enumerate(steps, 1):
+            _say(f"[{i}/{len(steps)}] {key} ...")
+            t0 = time.perf_counter()
+            results[key] = step()
+            timings[key] = round(time.perf_counter() - t0, 2)
     results["dataset"] = {s: [str(p) for p in getattr(results["dataset"], s)]
                           for s in ("training", "test", "validation")}
-    report = {"quick": quick, "wall_time_s": round(time.perf_counter() - wall0, 1), "step_time_s": timings,
+    report = {"quick": quick, "jobs": jobs, "wall_time_s": round(time.perf_counter() - wall0, 1), "step_time_s": timings,
               "machine": {"cpus": os.cpu_count(), "platform": platform.platform()}, "paper": PAPER, "ours": results}
     (out_dir / "report.json").write_text(json.dumps(report, indent=2, default=str) + "\n")
     markdown = report_format.markdown(report)

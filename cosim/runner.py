@@ -10,7 +10,7 @@ Ctrl-C (SIGINT) and SIGTERM stop a run after the tick under way: the
 components are closed (outputs made safe), everything recorded is kept and
 ``summary.json`` says ``"status": "interrupted"``; a sweep runs no further
 combination. ``summary.json`` says ``"running"`` while the run goes, so a
-folder whose process was killed tells so.
+folder whose process was killed tells so. Sweeps: see :mod:`cosim.sweep`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ import contextlib
 import json
 import os
 import secrets
-import shutil
 import signal
 import socket
 import subprocess
@@ -31,19 +30,20 @@ from pathlib import Path
 from typing import Any
 
 from cosim import bus
+from cosim.fingerprint import fingerprint
+from cosim.hosts import load_hosts
+from cosim.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
 from cosim.paths import make_path
 from cosim.placement import node_cpus
 from cosim.portcache import PortCache, PortStore
 from cosim.recorder import TraceRecorder
-from cosim.scenario import Scenario, load_scenario, sweep_overrides
+from cosim.scenario import Scenario, load_scenario
 from cosim.scheduler import (WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest,
                              with_close_faults)
 from cosim.stepper import Stepper, setup_component
-from cosim.summary import METRICS, largest_below, run_figures, sweep_plot, sweep_table
+from cosim.summary import run_figures
 from cosim.wiring import build_wiring
 
-
-NODE_START_TIMEOUT_S = 120.0
 
 
 @dataclass
@@ -59,6 +59,18 @@ class RunRequest:
     node_cpus: str = "auto"
     #: pace the ticks at this factor of real time (None: the scenario's ``realtime``)
     realtime: float | None = None
+    #: a sweep's runs at a time: 1 runs them one after another in this process
+    jobs: int = 1
+    #: where a sweep's runs execute: None (local worker processes when ``jobs`` > 1), ``local``,
+    #: ``dask`` or ``dask://HOST:PORT`` (see :mod:`cosim.executors`)
+    executor: str | None = None
+    #: a sweep's run still going after this many seconds of wall time is stopped and failed
+    run_timeout_s: float | None = None
+    #: with ``processes``: a HOSTS.yaml placing the nodes on machines (see :mod:`cosim.hosts`)
+    hosts: Path | None = None
+    #: open workers a sweep runs on instead of its own (several sweeps in a row: see
+    #: :func:`cosim.executors.workers`)
+    workers: Any = None
 
 
 @contextlib.contextmanager
@@ -92,63 +104,9 @@ def run(request: RunRequest) -> dict[str, Any]:
     with stop_on_signals() as stop:
         if not scenario.sweep:
             return run_one(scenario, request, stop)
-        return _run_sweep(scenario, request, stop)
+        from cosim.sweep import run_sweep
 
-
-def _run_sweep(scenario: Scenario, request: RunRequest, stop: StopRequest) -> dict[str, Any]:
-    combos = sweep_overrides(scenario)
-    _clear_earlier_sweep(request.out_dir / "runs")
-    rows = []
-    for i, (labels, extra) in enumerate(combos):
-        if stop.event.is_set():
-            print(f"cosim: sweep stopped: {len(combos) - i} of {len(combos)} runs not started", file=sys.stderr)
-            break
-        tag = "_".join(f"{k}={v}" for k, v in labels.items())
-        sub_dir = request.out_dir / "runs" / f"{i:03d}_{_safe(tag)}"
-        if request.progress:
-            print(f"[{i + 1}/{len(combos)}] {tag}", file=sys.stderr)
-        sub = RunRequest(request.scenario_file, sub_dir, [*request.overrides, *extra, "sweep={}"],
-                         request.processes, request.progress, request.node_cpus, request.realtime)
-        try:
-            summary = run_one(load_scenario(sub.scenario_file, sub.overrides), sub, stop)
-        except RunError as exc:  # the other runs go on; this one's summary says what happened
-            print(f"  {exc}", file=sys.stderr)
-            written = sub_dir / "summary.json"  # absent when the run failed before its first step
-            summary = json.loads(written.read_text()) if written.is_file() else {
-                "status": "failed", "error": str(exc), **dict.fromkeys(METRICS)}
-        rows.append({**labels, **{k: summary[k] for k in METRICS if summary[k] is not None},
-                     "status": summary["status"], "dir": str(sub_dir.relative_to(request.out_dir))})
-    summary: dict[str, Any] = {"scenario": scenario.name, "sweep": rows}
-    if stop.event.is_set():
-        summary["status"] = "interrupted"
-    table = sweep_table(rows)
-    threshold = scenario.report.threshold_mm
-    if threshold:
-        summary["largest_below_threshold"] = largest_below(rows, threshold)
-    summary["plots"] = [p.name for p in sweep_plot(rows, request.out_dir, threshold, scenario.name)]
-    _write_json(request.out_dir / "summary.json", summary)
-    (request.out_dir / "summary.md").write_text(table)
-    if not request.progress:  # --quiet
-        return summary
-    print(table)
-    for item in summary.get("largest_below_threshold", []):
-        group = " ".join(f"{k}={v}" for k, v in item.items() if k not in ("axis", "largest_below", "threshold_mm"))
-        print(f"largest {item['axis']} with mean tracking error below {threshold:g} mm: "
-              f"{item['largest_below']} ({group})")
-    return summary
-
-
-def _clear_earlier_sweep(runs_dir: Path) -> None:
-    """Remove the run folders an earlier sweep left in ``runs_dir`` (``NNN_label``, holding a
-    summary.json), so none is mistaken for one of this sweep's; says how many went."""
-    if not runs_dir.is_dir():
-        return
-    stale = sorted(d for d in runs_dir.iterdir()
-                   if d.is_dir() and d.name[:3].isdigit() and d.name[3:4] == "_" and (d / "summary.json").is_file())
-    for d in stale:
-        shutil.rmtree(d)
-    if stale:
-        print(f"cosim: cleared {len(stale)} run folder(s) of an earlier sweep in {runs_dir}", file=sys.stderr)
+        return run_sweep(scenario, request, stop)
 
 
 def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = None) -> dict[str, Any]:
@@ -168,11 +126,13 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     recorder = TraceRecorder(scenario, wiring, out, path)
     recorder.open()
     realtime = request.realtime or scenario.realtime
-    _write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
+    write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
                                        "note": "written when the run started; a run that ends rewrites it"})
     ports = [(c, p.name) for c in wiring.order for p in wiring.outputs[c]]
-    endpoint = f"tcp/127.0.0.1:{_free_port()}" if request.processes else None
-    session = bus.open_session(listen=[endpoint]) if endpoint else bus.open_session()
+    plan = load_hosts(request.hosts, scenario) if request.processes and request.hosts else None
+    endpoint = (plan.scheduler_listen if plan else _loopback_endpoint()) if request.processes else None
+    session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None) if endpoint \
+        else bus.open_session()
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
     cache = PortStore(ports, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, ports)
     procs: list[subprocess.Popen] = []
@@ -183,7 +143,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     try:
         if endpoint:
             group = RemoteGroup(session, run_id, wiring, cache)
-            _start_nodes(scenario, wiring, group, run_id, endpoint, request, cpus, procs)
+            expected = fingerprint(scenario, request.scenario_file)
+            commands = node_commands(request.scenario_file, request.overrides, wiring.order, run_id, endpoint,
+                                     out, expected, cpus, _loopback_endpoint, plan)
+            start_nodes(commands, group, expected, procs, plan.wait_s if plan else NODE_START_TIMEOUT_S, stop)
         else:
             steppers = {}
             group = LocalGroup(steppers)
@@ -200,7 +163,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     except RunError as exc:  # in set-up: nothing ran
         error = exc
     except BaseException as exc:  # set-up failed otherwise (or Ctrl-C before the handlers): say so, then raise
-        _write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed",
+        write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed",
                                            "error": f"set-up: {type(exc).__name__}: {exc}"})
         raise
     finally:
@@ -225,7 +188,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
                        error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
     if scheduler and scheduler.pacer:
         summary["realtime"] = scheduler.pacer.summary()
-    _write_json(out / "summary.json", summary)
+    write_json(out / "summary.json", summary)
     if error:
         raise RunError(error.component, f"{str(error).split(': ', 1)[-1]} (recorded so far: {out})")
     return summary
@@ -252,55 +215,11 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
     }
 
 
-# ---------------------------------------------------------------- processes
-
-
-def _start_nodes(scenario, wiring, group: RemoteGroup, run_id: str, endpoint: str, request, cpus: str | None,
-                 started: list) -> None:
-    """Start one ``cosim node`` process per component (appended to ``started``); wait until each is ready.
-
-    The processes form a full mesh: each node listens on a port of its own and
-    connects to the scheduler's ``endpoint`` and to every node started before it.
-    ``cpus``: the CPU list every node runs on (None: the OS places them).
-    """
-    procs = {}
-    earlier = [endpoint]
-    for name in wiring.order:
-        listen = f"tcp/127.0.0.1:{_free_port()}"
-        cmd = [sys.executable, "-m", "cosim.cli", "node", name, str(request.scenario_file),
-               "--run-id", run_id, "--listen", listen, "--run-dir", str(request.out_dir)]
-        for other in earlier:
-            cmd += ["--connect", other]
-        earlier.append(listen)
-        if cpus:
-            cmd += ["--cpus", cpus]
-        for item in request.overrides:
-            cmd += ["--set", item]
-        # a session of their own: a Ctrl-C at the terminal reaches the scheduler only, which stops them
-        procs[name] = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True)
-        started.append(procs[name])
-    pending = set(procs)
-    deadline = time.monotonic() + NODE_START_TIMEOUT_S
-    while pending:
-        reply = group.poll_reply(0.05)
-        if reply is not None:
-            if not reply.get("ok", False):
-                raise RunError(reply.get("name", "?"), reply.get("error", "failed to start"))
-            if reply.get("phase") == "ready":
-                pending.discard(reply["name"])
-            continue
-        for name in sorted(pending):
-            if procs[name].poll() is not None:
-                raise RunError(name, f"its node process exited with status {procs[name].returncode} "
-                                     "before it was ready")
-        if time.monotonic() > deadline:
-            raise RunError(sorted(pending)[0], f"its node was not ready within {NODE_START_TIMEOUT_S:g} s")
-
-
-def _free_port() -> int:
+def _loopback_endpoint() -> str:
+    """A free TCP endpoint on loopback: where a node on this machine listens."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 class _progress_bar:
@@ -329,10 +248,6 @@ class _progress_bar:
             self.bar.close()
 
 
-def _safe(text: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "=._-" else "_" for ch in text)[:80]
-
-
-def _write_json(path: Path, obj) -> None:
+def write_json(path: Path, obj) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(obj, indent=2) + "\n")

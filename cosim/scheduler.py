@@ -157,6 +157,8 @@ WINDOW = 32
 REPLY_BATCH = WINDOW // 2
 #: How long a timed-out run waits for the nodes' unreported steps before naming the hung one.
 FLUSH_GRACE_S = 0.25
+#: How long the nodes' links and routes may take to deliver every initial output.
+ROUTES_TIMEOUT_S = 30.0
 #: How long closing waits for the nodes to confirm that their components are closed (a coil
 #: driver ramps its outputs down and switches its supplies off, each of which may time out).
 CLOSE_TIMEOUT_S = 15.0
@@ -184,6 +186,7 @@ class RemoteGroup:
             bus.ctl_key(run_id, "*", "reply"),
             lambda sample: self._inbox.put((sample.attachment.to_bytes(), sample.payload.to_bytes())))
         self._done = {n: -1 for n in names}  # the last tick each node has reported
+        self._joined: set[str] = set()  # the nodes that said they were ready (set up, with the run's fingerprint)
         self._alive = session.liveliness().declare_subscriber(bus.alive_key(run_id), self._on_alive)
         # the nodes stop (their outputs made safe) when this token goes: this process ended
         self._token = session.liveliness().declare_token(bus.scheduler_alive_key(run_id))
@@ -269,6 +272,8 @@ class RemoteGroup:
         """A reply's header; the outputs it carries go to the store."""
         header, payload = item
         reply = bus.decode_json(header)
+        if reply.get("phase") == "ready" and reply.get("ok"):
+            self._joined.add(reply["name"])
         ticks = reply.get("ticks")
         if ticks:  # a batch of steps
             self._done[reply["name"]] = ticks[-1]
@@ -288,12 +293,13 @@ class RemoteGroup:
             return None
 
     def start(self, order: list[str], progress: Progress, observed_missing: Callable[[], list[str]],
-              tries: int = 100) -> None:
-        """Publish every initial output; repeat until every route has delivered one.
+              timeout_s: float = ROUTES_TIMEOUT_S) -> None:
+        """Publish every initial output; repeat until every route has delivered one (at most ``timeout_s``).
 
-        A zenoh route between two nodes exists only once both declarations
-        have reached both ends of their link; a value sent earlier is lost, so
-        producers re-send until every consumer confirms receipt.
+        A zenoh route between two nodes exists only once their link is up (a
+        node may connect to one that started later, on another machine) and
+        both declarations have reached both ends of it; a value sent earlier
+        is lost, so producers re-send until every consumer confirms receipt.
         """
         def init(names):
             for name in names:
@@ -303,7 +309,8 @@ class RemoteGroup:
             self._tick_pub.put(bus.encode_json({"check": True}))
 
         senders = list(order)
-        for _ in range(tries):
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
             progress.busy(*senders)
             init(senders)
             self.gather(senders, -1, "init", resend=init)
@@ -337,12 +344,12 @@ class RemoteGroup:
         self.gather(due, tick, None, progress)
 
     def close(self, hung: str | None) -> dict[str, str]:
-        """Stop every node (once) and wait until each has closed its component (at most
+        """Stop every node (once) and wait until each that joined has closed its component (at most
         ``CLOSE_TIMEOUT_S``); returns ``{name: fault}`` of those that set a fault while closing."""
         if self.closed:
             return {}
         self.closed = True
-        waiting = {n for n in self.names if n not in self._dead and n != hung}
+        waiting = {n for n in self.names if n in self._joined and n not in self._dead and n != hung}
         for name in self.names:
             if name not in self._dead:
                 _close_quietly(name, lambda n=name: self.command(n, "stop"))

@@ -81,6 +81,8 @@ def detection_error_m(measured_m: np.ndarray, truth_m: np.ndarray, t_s: np.ndarr
     measurement was captured (NaN or absent: at the row's own time); the
     truth is interpolated linearly between rows. NaN where no measurement.
     """
+    if not len(t_s):  # a run stopped before its first step
+        return np.zeros(0)
     at = t_s if capture_time_s is None else np.where(np.isfinite(capture_time_s), capture_time_s, t_s)
     truth_at = np.stack([np.interp(at, t_s, truth_m[:, i]) for i in range(3)], axis=1)
     return np.linalg.norm(measured_m - truth_at, axis=1)
@@ -97,8 +99,12 @@ def component_figures(recorder) -> dict[str, Any]:
     return out
 
 
+#: the keys of a sweep row that are not labels: what the run gave, and where and by what it was made
+ROW_KEYS = ("status", "dir", "error", "host", "code", "artifacts")
+
+
 def label_keys(rows: list[dict]) -> list[str]:
-    return [k for k in rows[0] if k not in (*METRICS, "status", "dir")] if rows else []
+    return [k for k in rows[0] if k not in (*METRICS, *ROW_KEYS)] if rows else []
 
 
 def sweep_table(rows: list[dict]) -> str:

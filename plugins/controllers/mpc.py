@@ -42,6 +42,8 @@ index orders the path following).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from cosim import ComponentError
@@ -133,6 +135,18 @@ class MPCController(PathController):
     def validate_params(cls, params):
         """Cheap checks of the scenario's params (the model is not resolved here)."""
         check_params(params)
+
+    @classmethod
+    def prepare(cls, params):
+        """Train the model now if it is named by kind and not cached yet."""
+        from cosim.identify.cache import resolve_model
+
+        resolve_model(str(check_params(params)["model"]))
+
+    @classmethod
+    def artifacts(cls, params) -> list:
+        spec = Path(str(check_params(params)["model"]))
+        return [spec] if spec.suffix == ".npz" or spec.is_file() else []
 
     def setup(self, params, rng):
         p = self.p = check_params(params)

@@ -70,7 +70,7 @@ from cosim.errors import UserError
 from cosim.params import Param, read_params
 from cosim_plugins.estimators import noise
 from cosim_plugins.estimators.ekf import MultiStepEKF
-from cosim_plugins.estimators.model_check import check_model_spec
+from cosim_plugins.estimators.model_check import check_model_spec, model_files
 
 PARAMS = {
     "model": Param("sindy-linear", "model file (.npz) or kind (trained on demand), see `cosim plugins`"),
@@ -136,6 +136,21 @@ class KalmanEstimator(Component):
     def validate_params(cls, params) -> None:
         p = _read(params)
         check_model_spec(p["model"])
+
+    @classmethod
+    def prepare(cls, params) -> None:
+        """Train a model named by kind and generate the logs Q is fitted on, if not cached yet."""
+        p = _read(params)
+        _resolve(p["model"])
+        if not p["q_diag"] and not p["q_logs"]:
+            from cosim.dataset import ensure_dataset
+            from cosim.identify.cache import quick_data
+
+            ensure_dataset(quick=quick_data())
+
+    @classmethod
+    def artifacts(cls, params) -> list:
+        return model_files(_read(params)["model"])
 
     def setup(self, params, rng):
         p = self.p = _read(params)

@@ -61,6 +61,12 @@ def check_model_spec(spec: str) -> None:
                              f"the estimator needs {STATE_DIM} states [p mm, v mm/s]")
 
 
+def model_files(spec: str) -> list[Path]:
+    """The model file ``spec`` names, as a list (empty for a kind, trained on demand)."""
+    path = Path(spec)
+    return [path] if path.suffix == ".npz" or path.is_file() else []
+
+
 def _check_sizes(cls, what: str, header: dict) -> None:
     state = header.get("state_dim", getattr(cls, "state_dim", None))
     inputs = header.get("input_dim", getattr(cls, "input_dim", None))

@@ -72,19 +72,19 @@ class FmuPlant(Component):
         self._last: dict[str, np.ndarray] = {}
 
     # ------------------------------------------------------------ setup
+    @classmethod
+    def prepare(cls, params: Mapping[str, Any]) -> None:
+        """Build the project's FMU now if it is missing or stale (a user's FMU is used as it is)."""
+        _fmu_file(params)
+
+    @classmethod
+    def artifacts(cls, params: Mapping[str, Any]) -> list:
+        return [_fmu_file(params)]
+
     def setup(self, params: Mapping[str, Any], rng: np.random.Generator) -> None:
         params = dict(params)
-        # imported here so that `python -m cosim_plugins.plant.build` does not
-        # import its own module twice (the package imports this file)
-        from cosim_plugins.plant.build import ensure_fmu
-
-        given = params.pop("fmu", None)
-        if given is None:
-            fmu_path = ensure_fmu()  # the project's plant, built on first use
-        else:  # a user's FMU is used as it is, never built in its place
-            fmu_path = Path(given)
-            if not fmu_path.is_file():
-                raise ComponentError(f"plant.fmu: fmu={given}: no such FMU file")
+        fmu_path = _fmu_file(params)
+        params.pop("fmu", None)
         self.dt = float(params.pop("dt", 0.02))
         md = read_model_description(str(fmu_path))
         variables = {v.name: v for v in md.modelVariables}
@@ -244,3 +244,19 @@ class FmuPlant(Component):
 
 def _vr_array(vrs: list[int]) -> ctypes.Array:
     return (fmi2ValueReference * len(vrs))(*vrs)
+
+
+def _fmu_file(params: Mapping[str, Any]) -> Path:
+    """The FMU the plant runs: ``params["fmu"]`` (a user's, used as it is) or the project's,
+    built on first use."""
+    # imported here so that `python -m cosim_plugins.plant.build` does not
+    # import its own module twice (the package imports this file)
+    from cosim_plugins.plant.build import ensure_fmu
+
+    given = params.get("fmu")
+    if given is None:
+        return ensure_fmu()
+    fmu_path = Path(given)
+    if not fmu_path.is_file():
+        raise ComponentError(f"plant.fmu: fmu={given}: no such FMU file")
+    return fmu_path
