@@ -25,6 +25,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 import uuid
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -68,7 +69,10 @@ class _Lane:
         self.cpus = cpus
         self.pid = ctx.RawValue("q", 0)
         self.pool = ProcessPoolExecutor(1, mp_context=ctx, initializer=_start_worker, initargs=(self.pid, cpus))
-        self.pool.submit(warm_up)  # imports while the client prepares the caches; a job queues behind it
+        #: when the worker had made its imports (monotonic s; None: not yet): a job starts no earlier
+        self.warm_at: float | None = None
+        # imports while the client prepares the caches; a job queues behind them
+        self.pool.submit(warm_up).add_done_callback(lambda _: setattr(self, "warm_at", time.monotonic()))
         self.future: Future | None = None
 
     def retire(self) -> None:
@@ -103,6 +107,12 @@ class LocalLanes:
         lane = next(lane for lane in self.lanes if lane.future is None)
         lane.future = lane.pool.submit(fn, job)
         return lane.future
+
+    def started_at(self, future: Future, submitted: float) -> float | None:
+        """When the job of ``future``, submitted at ``submitted`` (monotonic s), started: once its lane's
+        worker had made its imports; None while it is still making them."""
+        warm = self.lanes[self._lane_of(future)].warm_at
+        return None if warm is None else max(warm, submitted)
 
     def _lane_of(self, future: Future) -> int:
         return next(i for i, lane in enumerate(self.lanes) if lane.future is future)
@@ -207,6 +217,11 @@ class DaskLanes:
 
     def release(self, future: Future) -> None:
         self.in_flight.discard(future)
+
+    @staticmethod
+    def started_at(future: Future, submitted: float) -> float:
+        """A job starts when it is submitted: no more are in flight than the workers have threads."""
+        return submitted
 
     def stop_running(self, reason: str) -> None:
         """Stop the runs under way after their tick (the workers ignore the terminal's Ctrl-C)."""

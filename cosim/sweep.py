@@ -143,11 +143,13 @@ def _parallel(jobs: list[Job], record: "SweepRecord", stop, executor, progress: 
                 result = _result(future, job, executor)
                 executor.release(future)
                 bar.report(record.add(job, result), _tag(job))
-            for future, (job, started) in list(running.items()):
-                if job.timeout_s and time.monotonic() - started > job.timeout_s + GIVE_UP_GRACE_S:
+            for future, (job, submitted) in list(running.items()):
+                started = executor.started_at(future, submitted)  # None: its worker is still starting
+                limit_s = (job.timeout_s or 0.0) + GIVE_UP_GRACE_S
+                if job.timeout_s and started is not None and time.monotonic() - started > limit_s:
                     running.pop(future)
                     what = executor.abandon(future)
-                    text = f"no result within {job.timeout_s + GIVE_UP_GRACE_S:g} s of its start (hung): {what}"
+                    text = f"no result within {limit_s:g} s of its start (hung): {what}"
                     bar.report(record.add(job, _lost(job, text, ships=executor.ships)), _tag(job))
             bar.show(record.done, record.failed, executor.running())
     finally:

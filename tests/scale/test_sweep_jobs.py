@@ -75,7 +75,7 @@ def test_a_run_that_ignores_the_timeout_has_its_process_killed(tmp_path, monkeyp
                                  "components.relay.timeout_s": 600},
                                 {"label": "ok", "components.relay.params.fail_at_s": 100}]})
     code = main(["run", str(FAULTY), "--out", str(tmp_path), "--set", sweep, "--jobs", "2",
-                 "--run-timeout", "3", "--quiet"])
+                 "--run-timeout", "6", "--quiet"])
     assert code == 1
     stuck, ok = rows_of(tmp_path)
     assert stuck["status"] == "failed" and "its worker process was killed" in stuck["error"]
