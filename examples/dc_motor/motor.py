@@ -22,7 +22,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
 
 from cosim import Component, ComponentError, Port
 
-from .build import FmuBuildError, ensure_fmu
+from .build import SOURCE, FmuBuildError, ensure_fmu
 
 #: the FMU's input and state (output) variables, in the order of the ports
 INPUTS = ("voltage_V", "load_torque_Nm")
@@ -52,13 +52,23 @@ class MotorFmu(Component):
         self._t = 0.0
         self._last: dict[str, np.ndarray] = {}
 
+    @classmethod
+    def prepare(cls, params):
+        """Build the FMU (unless ``fmu`` names one) once, before runs fan out over processes."""
+        if params.get("fmu") is None:
+            _built_fmu()
+
+    @classmethod
+    def artifacts(cls, params):
+        """The file the motor depends on besides code: the FMU given as ``fmu``, else the model's
+        source, which the FMU is built from (pythonfmu stamps each build with a new GUID and time,
+        so two builds of the same source differ in their bytes)."""
+        return [Path(params["fmu"])] if params.get("fmu") is not None else [SOURCE]
+
     def setup(self, params, rng):
         params = {k: v for k, v in params.items() if k != "dt"}
         given = params.pop("fmu", None)
-        try:
-            fmu_path = ensure_fmu() if given is None else Path(given)
-        except FmuBuildError as exc:
-            raise ComponentError(str(exc)) from None
+        fmu_path = _built_fmu() if given is None else Path(given)
         if not fmu_path.is_file():
             raise ComponentError(f"fmu={given}: no such FMU file")
         md = read_model_description(str(fmu_path))
@@ -147,3 +157,11 @@ class MotorFmu(Component):
         if self._unzip_dir is not None:
             shutil.rmtree(self._unzip_dir, ignore_errors=True)
             self._unzip_dir = None
+
+
+def _built_fmu() -> Path:
+    """The FMU of the current model source (see ``build.py``); a failed build is a ComponentError."""
+    try:
+        return ensure_fmu()
+    except FmuBuildError as exc:
+        raise ComponentError(str(exc)) from None

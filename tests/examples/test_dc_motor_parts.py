@@ -134,6 +134,17 @@ def test_the_fmu_is_built_once_per_source_and_pythonfmu_version(dc_motor, tmp_pa
     assert build.fmu_path() != second  # another pythonfmu builds anew
 
 
+def test_prepare_builds_the_fmu_and_artifacts_name_what_it_is_built_from(dc_motor, tmp_path, monkeypatch):
+    motor, build = dc_motor.motor.MotorFmu, dc_motor.build
+    monkeypatch.setattr(build, "BUILD_DIR", tmp_path / "build")
+    motor.prepare({"dt": 1e-3, "R_ohm": 2.0})
+    assert [p.name for p in (tmp_path / "build").iterdir()] == [build.fmu_path().name]
+    motor.prepare({"dt": 1e-3, "fmu": str(tmp_path / "theirs.fmu")})  # a given FMU is never built
+    assert len(list((tmp_path / "build").iterdir())) == 1
+    assert motor.artifacts({"dt": 1e-3}) == [build.SOURCE]
+    assert motor.artifacts({"dt": 1e-3, "fmu": "x/theirs.fmu"}) == [Path("x/theirs.fmu")]
+
+
 def test_the_fmu_cache_is_ignored_by_git(dc_motor):
     repo = EXAMPLE.parents[1]
     if not (repo / ".git").exists() or shutil.which("git") is None:
