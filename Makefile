@@ -6,10 +6,16 @@ STAMP := $(VENV)/.installed
 FMU := build/swimmer_plant.fmu
 FMU_SOURCES := $(wildcard fmus/swimmer_plant/*.c fmus/swimmer_plant/*.h fmus/swimmer_plant/*.xml)
 
-.PHONY: demo test fmu venv clean
+.PHONY: demo example test fmu venv clean
 
 demo: $(STAMP) $(FMU)
 	$(VENV)/bin/cosim run scenarios/racetrack.yaml --out runs/demo
+
+# A second system on the framework: the DC motor FMU (pythonfmu; built once per source, cached
+# in examples/dc_motor/build/) under PI speed control.
+example: $(STAMP)
+	$(PY) examples/dc_motor/build.py
+	$(VENV)/bin/cosim run examples/dc_motor/scenario.yaml --out runs/dc_motor
 
 test: $(STAMP) $(FMU)
 	$(PY) -m pytest
