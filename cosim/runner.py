@@ -169,11 +169,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     finally:
         if group is not None:  # closed already unless set-up failed
             late_faults = group.close(hung=None)
-        for proc in procs:
-            try:
-                proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        end_nodes(procs)
         if isinstance(cache, PortCache):
             cache.close()
         session.close()
@@ -192,6 +188,31 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     if error:
         raise RunError(error.component, f"{str(error).split(': ', 1)[-1]} (recorded so far: {out})")
     return summary
+
+
+#: How long the node processes started here have to exit by themselves once the run has closed them,
+#: and then once sent SIGTERM, before they are killed [s].
+NODE_EXIT_S = (1.0, 5.0)
+
+
+def end_nodes(procs: list[subprocess.Popen]) -> None:
+    """End the node processes started here once the run is over. The nodes that joined were told to
+    stop and have closed their components (or did not confirm within the close timeout), so they
+    exit by themselves; a node still starting (another's set-up failed meanwhile) never heard it,
+    so the ones still running are sent SIGTERM (a node closes its component on it) and then killed."""
+    for grace_s, last in zip(NODE_EXIT_S, (False, True)):
+        deadline = time.monotonic() + grace_s
+        for proc in procs:
+            try:
+                proc.wait(timeout=max(deadline - time.monotonic(), 0.0))
+            except subprocess.TimeoutExpired:
+                if last:
+                    proc.kill()
+                    proc.wait()
+        if not last:
+            for proc in procs:
+                if proc.poll() is None:
+                    proc.terminate()
 
 
 def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s: float,

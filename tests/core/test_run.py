@@ -67,6 +67,26 @@ def test_failing_component_is_named_and_the_record_so_far_is_kept(tmp_path, mode
     assert (tmp_path / "recording.rrd").is_file() and (tmp_path / "trace.npz").is_file()
 
 
+def test_a_failed_set_up_with_processes_ends_the_nodes_still_starting(tmp_path):
+    """The relay's set-up fails while another node is still in its own (60 s long): the run names the
+    relay, and no node process of the run is left behind."""
+    slow = "components.slow={plugin: test.faulty, params: {setup_s: 60}, inputs: {position: camera.position}}"
+    with pytest.raises(RunError) as err:
+        run(RunRequest(FAULTY, tmp_path, ["components.relay.params.mode=setup", slow], processes=True,
+                       progress=False))
+    assert err.value.component == "relay" and "deliberate set-up failure" in str(err.value)
+    assert json.loads((tmp_path / "summary.json").read_text())["status"] == "failed"
+    left = [p for p in Path("/proc").glob("[0-9]*") if str(tmp_path) in _cmdline(p)]
+    assert left == []
+
+
+def _cmdline(proc: Path) -> str:
+    try:
+        return (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return ""
+
+
 @pytest.mark.parametrize("processes", [False, True])
 def test_a_fault_set_while_closing_is_the_run_outcome_named_in_summary_and_recording(tmp_path, processes):
     from recording_checks import recorded_events

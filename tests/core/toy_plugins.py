@@ -39,13 +39,17 @@ class KinematicPlant(Component):
 
 class Faulty(Component):
     """Passes position through; at ``fail_at_s`` raises, hangs, or ends its process (``mode``);
-    or (``close_fault``) steps well and sets a fault when closed."""
+    or (``close_fault``) steps well and sets a fault when closed; or (``setup``) fails its set-up.
+    ``setup_s``: how long its set-up takes [s]."""
 
     inputs = (Port("position", (3,), "m"),)
     outputs = (Port("position", (3,), "m"),)
 
     def setup(self, params, rng):
         self.fail_at, self.mode = params.get("fail_at_s", 1.0), params.get("mode", "raise")
+        time.sleep(params.get("setup_s", 0.0))
+        if self.mode == "setup":
+            raise ComponentError("deliberate set-up failure")
 
     def close(self):
         if self.mode == "close_fault":
