@@ -2,8 +2,10 @@
 
 Keys (``run_id`` and component names are single key chunks):
 
-* ``cosim/{run_id}/{component}/{port}``: a port value, published by its
-  component once per step it takes;
+* ``cosim/{run_id}/{component}/outputs``: the values of all the
+  component's output ports, published once per step it takes (one message:
+  a step's outputs are consumed together, and a message costs far more
+  than its bytes);
 * ``cosim/{run_id}/alive/{component}``: liveliness token of a running node;
 * ``cosim/{run_id}/ctl/tick``: the scheduler's credits (the ticks nodes may
   step) and set-up checks, to every node;
@@ -12,14 +14,15 @@ Keys (``run_id`` and component names are single key chunks):
   outputs, so the scheduler records a distributed run without subscribing
   to every port.
 
-Arrays travel as raw little-endian float64 bytes; the attachment carries the
-tick index (int64, little-endian) and the shape (int32 each), so a consumer
-knows which step produced the value. No pickle anywhere.
+Values travel as raw little-endian float64 bytes, the ports one after
+another in the component's declared order and shapes (:class:`ValueLayout`:
+producer and consumer know the wiring, and every node checked the run's
+fingerprint); the attachment carries the tick index (int64, little-endian),
+so a consumer knows which step produced the values. No pickle anywhere.
 """
 
 from __future__ import annotations
 
-import functools
 import json
 import struct
 import time
@@ -144,8 +147,8 @@ def publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:
                                      reliability=zenoh.Reliability.RELIABLE, express=True)
 
 
-def port_key(run_id: str, component: str, port: str) -> str:
-    return f"{ROOT}/{run_id}/{component}/{port}"
+def outputs_key(run_id: str, component: str) -> str:
+    return f"{ROOT}/{run_id}/{component}/outputs"
 
 
 def alive_key(run_id: str, component: str = "*") -> str:
@@ -168,36 +171,29 @@ def tick_key(run_id: str) -> str:
 _TICK = struct.Struct("<q")
 
 
-@functools.lru_cache(maxsize=None)
-def _shape_bytes(shape: tuple[int, ...]) -> bytes:
-    """The attachment after the tick: ndim (uint8), then each dimension (int32)."""
-    return struct.pack(f"<B{len(shape)}i", len(shape), *shape)
+def encode_outputs(values: list[np.ndarray], tick: int) -> tuple[bytes, bytes]:
+    """``(payload, attachment)`` of one step's outputs ``values`` (float64, in the declared port order)
+    produced at ``tick``; read back with :func:`decode_tick` and the producer's :class:`ValueLayout`."""
+    return _pack(values), _TICK.pack(tick)
 
 
-@functools.lru_cache(maxsize=None)
-def _shape_of(shape_bytes: bytes) -> tuple[int, ...]:
-    return struct.unpack_from(f"<{shape_bytes[0]}i", shape_bytes, 1)
+def decode_tick(attachment: bytes) -> int:
+    return _TICK.unpack_from(attachment)[0]
 
 
-def encode_array(value: np.ndarray, tick: int) -> tuple[bytes, bytes]:
-    """``(payload, attachment)`` for an array produced at ``tick``."""
-    arr = np.asarray(value, dtype=_F64)
-    return arr.tobytes(), _TICK.pack(tick) + _shape_bytes(arr.shape)
-
-
-def decode_array(payload: bytes, attachment: bytes) -> tuple[int, np.ndarray]:
-    """Inverse of :func:`encode_array`: ``(tick, array)``; the array is read-only."""
-    return _TICK.unpack_from(attachment)[0], np.frombuffer(payload, dtype=_F64).reshape(_shape_of(attachment[8:]))
+def _pack(values) -> bytes:
+    return b"".join(np.asarray(v, dtype=_F64).tobytes() for v in values)
 
 
 def encode_reply(header: dict, values: list[np.ndarray] = ()) -> tuple[bytes, bytes]:
     """``(payload, attachment)`` of a node's reply: the raw float64 bytes of
     ``values`` one after another (see :class:`ValueLayout`), and ``header`` as JSON."""
-    return b"".join(np.asarray(v, dtype=_F64).tobytes() for v in values), encode_json(header)
+    return _pack(values), encode_json(header)
 
 
 class ValueLayout:
-    """Where each of a fixed list of arrays lies in the payload of :func:`encode_reply`."""
+    """Where each of a fixed list of arrays lies in the payload of :func:`encode_outputs` or
+    :func:`encode_reply`."""
 
     def __init__(self, shapes: list[tuple[int, ...]]):
         sizes = [int(np.prod(shape)) for shape in shapes]
@@ -209,9 +205,15 @@ class ValueLayout:
         """The arrays of ``count`` such lists laid end to end in one payload (read-only views)."""
         flat = np.frombuffer(payload, dtype=_F64)
         if flat.size != count * self.size:
-            raise ValueError(f"reply holds {flat.size} values, expected {count} x {self.size}")
+            raise ValueError(f"payload holds {flat.size} values, expected {count} x {self.size}")
         return [[flat[base + start:base + end].reshape(shape) for start, end, shape in self._slices]
                 for base in range(0, flat.size, self.size)]
+
+
+def output_layouts(outputs: dict) -> dict[str, tuple[list[str], ValueLayout]]:
+    """Per component, its output ports' names and their :class:`ValueLayout` (``outputs``: a
+    wiring's ``{component: [Port, ...]}``)."""
+    return {c: ([p.name for p in ports], ValueLayout([p.shape for p in ports])) for c, ports in outputs.items()}
 
 
 def encode_json(obj) -> bytes:

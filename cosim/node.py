@@ -76,10 +76,15 @@ class _Node:
         self.done_values: list = []
         self.done_lock = threading.Lock()  # held briefly: a flush reports even past a hung step
 
-    def on_data(self, key: tuple[str, str], sample: zenoh.Sample) -> None:
-        tick, value = bus.decode_array(sample.payload.to_bytes(), sample.attachment.to_bytes())
+    def on_data(self, producer: str, ports: list[tuple[int, str]], layout: bus.ValueLayout,
+                sample: zenoh.Sample) -> None:
+        """A step's outputs of ``producer``: keep those of ``ports`` (their index in its declared
+        outputs, their name) that this node consumes."""
+        tick = bus.decode_tick(sample.attachment.to_bytes())
+        values = layout.split(sample.payload.to_bytes())[0]
         with self.lock:
-            self.store.store(key, tick, value)
+            for i, port in ports:
+                self.store.store((producer, port), tick, values[i])
             self._advance()
 
     def on_tick(self, sample: zenoh.Sample) -> None:
@@ -211,9 +216,11 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     store = PortStore([(src, port) for src, port, _, _ in edges], keep=WINDOW + 2)
     stepper = Stepper(name, component, session, run_id, wiring, store, timeout_s)
     node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply)
-    subs = [session.declare_subscriber(bus.port_key(run_id, src, port),
-                                       lambda s, k=(src, port): node.on_data(k, s))
-            for src, port, _, _ in edges]
+    subs = []
+    for src, (names, layout) in bus.output_layouts({s: wiring.outputs[s] for s, _, _, _ in edges}).items():
+        used = [(i, port) for i, port in enumerate(names) if any(e[:2] == (src, port) for e in edges)]
+        subs.append(session.declare_subscriber(bus.outputs_key(run_id, src),
+                                               lambda s, a=(src, used, layout): node.on_data(*a, s)))
     subs.append(session.declare_subscriber(bus.tick_key(run_id), node.on_tick))
     subs.append(session.declare_subscriber(bus.ctl_key(run_id, name, "cmd"), node.on_cmd))
     token = session.liveliness().declare_token(bus.alive_key(run_id, name))

@@ -3,9 +3,10 @@
 :class:`PortStore` keeps, per port, its few most recent values so a
 consumer over a delayed edge can read the previous tick's value even after
 the producer published a newer one. :class:`PortCache` fills a store from
-zenoh FIFO channels (no Python callback thread: a local put lands in the
-channel before ``put`` returns) and waits, polling, for a stamp that has not
-arrived yet. Nodes fill a plain store from their event queue instead.
+zenoh FIFO channels, one per producing component (no Python callback
+thread: a local put lands in the channel before ``put`` returns), and
+waits, polling, for a stamp that has not arrived yet. Nodes fill a plain
+store from their subscribers' callbacks instead.
 """
 
 from __future__ import annotations
@@ -50,20 +51,25 @@ class PortStore:
 
 
 class PortCache(PortStore):
-    """A store subscribed to the given ports of ``run_id`` through FIFO channels."""
+    """A store subscribed to the outputs of the components in ``outputs`` (a wiring's
+    ``{component: [Port, ...]}``) of run ``run_id`` through FIFO channels."""
 
-    def __init__(self, session: zenoh.Session, run_id: str, ports: list[tuple[str, str]]):
-        super().__init__(ports)
-        self._subs = {p: session.declare_subscriber(bus.port_key(run_id, *p)) for p in ports}
+    def __init__(self, session: zenoh.Session, run_id: str, outputs: dict):
+        super().__init__([(c, p.name) for c, ports in outputs.items() for p in ports])
+        self._layouts = bus.output_layouts(outputs)
+        self._subs = {c: session.declare_subscriber(bus.outputs_key(run_id, c))
+                      for c, ports in outputs.items() if ports}
 
-    def _drain(self, key: tuple[str, str]) -> None:
-        """Move what has arrived on one port into the store."""
-        sub = self._subs[key]
+    def _drain(self, comp: str) -> None:
+        """Move what has arrived from one component into the store."""
+        sub, (names, layout) = self._subs[comp], self._layouts[comp]
         while (sample := sub.try_recv()) is not None:
-            self.store(key, *bus.decode_array(sample.payload.to_bytes(), sample.attachment.to_bytes()))
+            tick = bus.decode_tick(sample.attachment.to_bytes())
+            for name, value in zip(names, layout.split(sample.payload.to_bytes())[0]):
+                self.store((comp, name), tick, value)
 
     def has(self, comp: str, port: str, stamp: int) -> bool:
-        self._drain((comp, port))
+        self._drain(comp)
         return super().has(comp, port, stamp)
 
     def get(self, comp: str, port: str, stamp: int, timeout_s: float) -> np.ndarray:
@@ -71,11 +77,11 @@ class PortCache(PortStore):
         key = (comp, port)
         values = self._values[key]
         if stamp not in values:
-            self._drain(key)
+            self._drain(comp)
         if stamp not in values:
 
             def fetch():
-                self._drain(key)
+                self._drain(comp)
                 return values.get(stamp)
 
             if bus.poll(fetch, timeout_s) is None:

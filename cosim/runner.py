@@ -134,7 +134,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None) if endpoint \
         else bus.open_session()
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
-    cache = PortStore(ports, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, ports)
+    cache = PortStore(ports, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, wiring.outputs)
     procs: list[subprocess.Popen] = []
     group = scheduler = error = None
     completed = 0

@@ -175,8 +175,7 @@ class RemoteGroup:
     def __init__(self, session: zenoh.Session, run_id: str, wiring: Wiring, store: PortStore):
         self.names = names = wiring.order
         self._store = store
-        self._outputs = {n: ([p.name for p in wiring.outputs[n]], bus.ValueLayout([p.shape for p in wiring.outputs[n]]))
-                         for n in names}
+        self._outputs = bus.output_layouts({n: wiring.outputs[n] for n in names})
         self._dead: set[str] = set()
         self._tick_pub = bus.publisher(session, bus.tick_key(run_id))
         self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}

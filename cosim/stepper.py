@@ -61,10 +61,8 @@ class Stepper:
         self._inputs = [(e.dst_port, e.src, e.src_port, wiring.periods[e.src], e.delay)
                         for e in wiring.edges_into(name)]
         self._ports = {p.name: p.shape for p in wiring.outputs[name]}
-        consumed = {e.src_port for e in wiring.edges if e.src == name}
-        # ports another component waits for leave first; the rest only feed observers
-        self._publish_order = sorted(self._ports, key=lambda p: p not in consumed)
-        self._pubs = {p: bus.publisher(session, bus.port_key(run_id, name, p)) for p in self._ports}
+        # a component without outputs (a scope, a logger) publishes nothing
+        self._pub = bus.publisher(session, bus.outputs_key(run_id, name)) if self._ports else None
         #: the values last published, in the declared port order
         self.last_outputs: list[np.ndarray] = []
 
@@ -87,15 +85,15 @@ class Stepper:
             values[port] = np.asarray(outputs[port], dtype=float)
             if values[port].shape != shape:
                 raise ComponentError(f"output {port!r} has shape {values[port].shape}, declared {shape}")
-        for port in self._publish_order:
-            payload, attachment = bus.encode_array(values[port], tick)
-            self._pubs[port].put(payload, attachment=attachment)
         self.last_outputs = list(values.values())
+        if self._pub is not None:
+            payload, attachment = bus.encode_outputs(self.last_outputs, tick)
+            self._pub.put(payload, attachment=attachment)
 
     def close(self) -> str | None:
         """Close the component; returns the fault it set while closing (see :class:`Component`), if any."""
-        for pub in self._pubs.values():
-            pub.undeclare()
+        if self._pub is not None:
+            self._pub.undeclare()
         before = self.component.fault
         self.component.close()
         after = self.component.fault
