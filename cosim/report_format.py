@@ -154,6 +154,10 @@ def _fig6_profile(report: dict, profile: str) -> list[str]:
            f"{' (' + ', '.join(kf_ok) + ')' if kf_ok else ''}. "
            + (f"Not monotonic beyond twice the seeds' spread: {'; '.join(bumpy)}. " if bumpy and mono else
               ("Every curve is monotonic within twice the seeds' spread. " if mono else ""))
+           + ("(The physical model's bump is its velocity time constant, fitted on 20 ms PI logs and about 4x "
+              "too slow for the step commands of a loop closed on ~1 s frames: see *The physical model's bump "
+              "near 1 s frames* under Estimators.) " if any(m == "physical" for (e, m), d in mono.items()
+                                                          if not d["monotonic"]) else "")
            + ("The models are identified on the ideal profile's dataset; on the lab profile they run against "
               "a faster swimmer in a flow they never saw, which is what the filter has to absorb."
               if profile != "ideal" else
