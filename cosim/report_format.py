@@ -158,8 +158,9 @@ def _fig6_profile(report: dict, profile: str) -> list[str]:
               "too slow for the step commands of a loop closed on ~1 s frames: see *The physical model's bump "
               "near 1 s frames* under Estimators.) " if any(m == "physical" for (e, m), d in mono.items()
                                                           if not d["monotonic"]) else "")
-           + ("The models are identified on the ideal profile's dataset; on the lab profile they run against "
-              "a faster swimmer in a flow they never saw, which is what the filter has to absorb."
+           + (f"The models are identified on the {profile} profile's own dataset (the paper's training runs on "
+              f"this profile, as the paper's models on its rig's logs); they run against the same plant, but "
+              f"the loop on long frame intervals asks them for motions the 20 ms PI logs do not contain."
               if profile != "ideal" else
               "Our models were identified on the same simulated plant they run against and the filter knows "
               "the camera's noise, so a model carries the swimmer further between frames than in the lab.")]

@@ -62,6 +62,8 @@ BACKENDS = ("osqp", "cvxpy")
 
 PARAMS = {
     "model": Param("sindy-linear", "model file (.npz) or kind, see `cosim models`"),
+    "dataset": Param("ideal", "profile whose paper dataset trains a model named by kind "
+                     "(the lab profile sets lab: a lab model for a lab scenario)"),
     "horizon": Param(5, "prediction horizon N [steps]", 1, 50),
     "q": Param([3.0, 3.0, 3.0], "position error weights Q (x, y, z) [1/mm^2]"),
     "r": Param([1.0, 1.0, 1.0], "command change weights R (x, y, z)"),
@@ -148,7 +150,8 @@ class MPCController(PathController):
         """Train the model now if it is named by kind and not cached yet."""
         from cosim.identify.cache import resolve_model
 
-        resolve_model(str(check_params(params)["model"]))
+        p = check_params(params)
+        resolve_model(str(p["model"]), profile=str(p["dataset"]))
 
     @classmethod
     def artifacts(cls, params) -> list:
@@ -174,7 +177,7 @@ class MPCController(PathController):
         from cosim.identify.cache import resolve_model
 
         try:
-            model = resolve_model(str(p["model"]))
+            model = resolve_model(str(p["model"]), profile=str(p["dataset"]))
             A, B, c = model_matrices(model, self.dt, p["hover_hz"])
         except (UserError, ValueError, RuntimeError) as exc:
             raise ComponentError(f"model {p['model']!r}: {exc}") from None

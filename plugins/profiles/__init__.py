@@ -31,10 +31,12 @@ LAB = {
     "camera.emulator": {"latency_s": LAB_LATENCY_S, "noise_px": LAB_NOISE_PX, "outlier_prob": LAB_OUTLIER_PROB,
                         "outlier_mm": 8.0, "lost_prob": LAB_LOST_PROB, "drop_prob": LAB_DROP_PROB},
     # the filter knows the camera it is wired to (its latency and noise), as the lab's did
-    "estimator.kf": {"latency_s": LAB_LATENCY_S, "noise_px": LAB_NOISE_PX},
+    # and its models (and the logs Q is fitted on) are identified on the lab's own logs, as the
+    # paper's were on its rig's: the paper dataset generated on this profile
+    "estimator.kf": {"latency_s": LAB_LATENCY_S, "noise_px": LAB_NOISE_PX, "dataset": "lab"},
     "controller.pi": {"speed_mm_s": LAB_CRUISE_MM_S},
     "controller.mrac": {"speed_mm_s": LAB_CRUISE_MM_S},
-    "controller.mpc": {"speed_mm_s": LAB_CRUISE_MM_S},
+    "controller.mpc": {"speed_mm_s": LAB_CRUISE_MM_S, "dataset": "lab"},
     # a tank of still-looking water: thermal convection from the coils' heat (1 mm/s), the
     # walls' extra drag near them; the other effects (actuation lag, heading dynamics,
     # gradient force, anisotropic drag) are on in both profiles

@@ -70,3 +70,32 @@ def test_seeds_are_pooled_and_decide_the_largest_interval_and_monotonicity():
     assert not mono["monotonic"] and mono["drops"] == [[0.5, 1.0, 4.1, 3.1]]
     wide = [*rows[:4], _row(1.0, 1, 3.0), _row(1.0, 2, 6.0)]  # the drop lies within the seeds' spread
     assert monotonic_within_spread(pool_replicates(wide), "interval_s")[0]["monotonic"]
+
+
+# ------------------------------------------------------------ the profile's own dataset and models
+
+def test_lab_scenarios_train_their_models_on_the_lab_dataset():
+    """The lab profile points the filter's and the MPC's on-demand models at the lab dataset."""
+    s = load_scenario(SCENARIOS / "feedback_sweep.yaml", ["profile=lab"])
+    assert s.components["estimator"].params["dataset"] == "lab"
+    m = load_scenario(SCENARIOS / "controllers_racetrack.yaml",
+                      ["profile=lab", "sweep={}", "components.controller.plugin=controller.mpc"])
+    assert m.components["controller"].params["dataset"] == "lab"
+    assert "dataset" not in load_scenario(SCENARIOS / "feedback_sweep.yaml").components["estimator"].params
+
+
+def test_the_dataset_cache_key_includes_the_profile(monkeypatch, tmp_path):
+    from cosim import dataset
+    from cosim.errors import UserError
+
+    monkeypatch.setenv("COSIM_CACHE", str(tmp_path))
+    assert dataset.dataset_folder(True) == tmp_path / "paper_dataset_quick"
+    assert dataset.dataset_folder(True, "lab") == tmp_path / "paper_dataset_quick_lab"
+    assert dataset.profile_overrides("ideal") == [] and dataset.profile_overrides("lab") == ["profile=lab"]
+    ideal, lab = dataset._fingerprint(True), dataset._fingerprint(True, "lab")
+    assert ideal != lab
+    # a changed lab value changes the key (the models trained on it are retrained)
+    monkeypatch.setitem(LAB["camera.emulator"], "noise_px", LAB["camera.emulator"]["noise_px"] + 1.0)
+    assert dataset._fingerprint(True, "lab") not in (ideal, lab)
+    with pytest.raises(UserError, match="unknown"):
+        dataset.profile_values("nosuch")
