@@ -259,6 +259,8 @@ def add_dataset_command(sub) -> None:
     p.add_argument("--quick", action="store_true", help="40 s runs instead of 290 s each")
     p.add_argument("--out", type=Path, default=None, help="folder (default: the cache, $COSIM_CACHE or ./cache)")
     p.add_argument("--force", action="store_true", help="regenerate even if the cache is current")
+    p.add_argument("--profile", default="ideal", help="run the scenarios on this profile (ideal, lab, ...); "
+                   "its logs are cached apart, and models named by kind in a scenario on it train on them")
     add_jobs_argument(p, "runs at a time, each in a worker process")
     p.set_defaults(func=cmd_dataset)
 
@@ -266,7 +268,8 @@ def add_dataset_command(sub) -> None:
 def cmd_dataset(args) -> int:
     from cosim.dataset import ensure_dataset
 
-    ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force, jobs=parse_jobs(args.jobs))
+    ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force, jobs=parse_jobs(args.jobs),
+                        profile=args.profile)
     for split in ("training", "test", "validation"):
         files = getattr(ds, split)
         print(f"{split} ({len(files)} logs):")

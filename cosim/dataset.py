@@ -9,6 +9,14 @@ They are run once and their ``log.csv`` files kept under ``<cache>/paper_dataset
 cache is reused while the scenario files, the plant FMU and the length
 (full or ``quick``) are unchanged; otherwise it is regenerated.
 The cache folder is ``$COSIM_CACHE`` or ``./cache``.
+
+A ``profile`` (``ideal``, the default, or one a plugin registers, e.g.
+``lab``; see :func:`cosim.scenario.apply_profile`) runs the scenarios with
+that profile's values, as the paper's logs came from its own rig: its
+dataset lives in ``paper_dataset[_quick]_<profile>`` and its fingerprint
+includes the profile's name and values, so the models trained on it
+(:mod:`cosim.identify.cache`) are cached apart and retrained when a value
+changes.
 """
 
 from __future__ import annotations
@@ -43,10 +51,11 @@ class PaperDataset:
     folder: Path
 
 
-def _fingerprint(quick: bool) -> str:
+def _fingerprint(quick: bool, profile: str = "ideal") -> str:
     """Hash of what the data depend on: the scenarios, the plant FMU, the source of the
-    components and paths the scenarios use (with the plugin modules those import) and
-    the length."""
+    components and paths the scenarios use (with the plugin modules those import), the
+    length and the profile (its name and values; ``ideal`` adds nothing, so its cache
+    keys are those of the data made before profiles existed)."""
     from cosim.paths import make_path
     from cosim.scenario import load_scenario
     from cosim.wiring import build_wiring
@@ -56,14 +65,41 @@ def _fingerprint(quick: bool) -> str:
     sources: set[str] = set()
     for name in ("training.yaml", "validation.yaml"):
         h.update((PAPER_SCENARIOS / name).read_bytes())
-        scenario = load_scenario(PAPER_SCENARIOS / name)
+        scenario = load_scenario(PAPER_SCENARIOS / name, profile_overrides(profile))
         used = [*build_wiring(scenario).classes.values(), type(make_path(scenario.path.plugin))]
         sources.update(f for cls in used for f in plugin_sources(cls))
     for source in sorted(sources):
         h.update(Path(source).read_bytes())
     h.update(Path(ensure_fmu()).read_bytes())
     h.update(b"quick" if quick else b"full")
+    if profile != "ideal":
+        h.update(json.dumps({"profile": profile, "values": profile_values(profile)}, sort_keys=True,
+                            default=str).encode())
     return h.hexdigest()[:16]
+
+
+def profile_overrides(profile: str) -> list[str]:
+    """The scenario overrides that run the dataset's scenarios on ``profile``."""
+    return [] if profile == "ideal" else [f"profile={profile}"]
+
+
+def profile_values(profile: str) -> dict:
+    """The values profile ``profile`` sets (``{plugin: {param: value}}``); unknown: a UserError."""
+    from cosim.errors import UserError
+    from cosim.plugins import registry
+
+    profiles = registry("profile")
+    if profile == "ideal" and profile not in profiles:
+        return {}
+    if profile not in profiles:
+        raise UserError(f"profile {profile!r} unknown; known: {', '.join(['ideal', *sorted(profiles)])}")
+    return profiles[profile]
+
+
+def dataset_folder(quick: bool, profile: str = "ideal") -> Path:
+    """The cache folder of the (quick) dataset on ``profile``."""
+    name = "paper_dataset_quick" if quick else "paper_dataset"
+    return cache_dir() / (name if profile == "ideal" else f"{name}_{profile}")
 
 
 def plugin_sources(cls: type, prefixes: tuple[str, ...] = ("cosim_plugins.",)) -> set[str]:
@@ -101,27 +137,30 @@ class CacheLock:
 
 
 def ensure_dataset(quick: bool = False, folder: Path | None = None, force: bool = False,
-                   progress: bool = True, jobs: int = 1, workers=None) -> PaperDataset:
-    """The cached dataset; splits that are missing or stale are generated first (progress on stderr),
-    ``jobs`` runs at a time on open ``workers`` or its own (see :mod:`cosim.sweep`)."""
-    folder = Path(folder) if folder else cache_dir() / ("paper_dataset_quick" if quick else "paper_dataset")
+                   progress: bool = True, jobs: int = 1, workers=None, profile: str = "ideal") -> PaperDataset:
+    """The cached dataset on ``profile``; splits that are missing or stale are generated first (progress
+    on stderr), ``jobs`` runs at a time on open ``workers`` or its own (see :mod:`cosim.sweep`)."""
+    folder = Path(folder) if folder else dataset_folder(quick, profile)
     with CacheLock(folder.parent / f".{folder.name}.lock"):
-        return _ensure(folder, quick, force, progress, jobs, workers)
+        return _ensure(folder, quick, force, progress, jobs, workers, profile)
 
 
-def _ensure(folder: Path, quick: bool, force: bool, progress: bool, jobs: int, workers) -> PaperDataset:
+def _ensure(folder: Path, quick: bool, force: bool, progress: bool, jobs: int, workers,
+            profile: str = "ideal") -> PaperDataset:
     manifest = folder / "manifest.json"
-    stamp = _fingerprint(quick)
+    stamp = _fingerprint(quick, profile)
     data = json.loads(manifest.read_text()) if manifest.is_file() and not force else {}
     if data.get("fingerprint") != stamp:
         if folder.exists():
             shutil.rmtree(folder)
         data = {"fingerprint": stamp}
     duration = [f"duration_s={QUICK_DURATION_S}"] if quick else []
+    on = profile_overrides(profile)
     plans = {
-        "training": (PAPER_SCENARIOS / "training.yaml", duration),
-        "test": (PAPER_SCENARIOS / "training.yaml", [f"duration_s={TEST_DURATION_S[quick]}", f"seed={TEST_SEED}"]),
-        "validation": (PAPER_SCENARIOS / "validation.yaml", duration),
+        "training": (PAPER_SCENARIOS / "training.yaml", duration + on),
+        "test": (PAPER_SCENARIOS / "training.yaml",
+                 [f"duration_s={TEST_DURATION_S[quick]}", f"seed={TEST_SEED}"] + on),
+        "validation": (PAPER_SCENARIOS / "validation.yaml", duration + on),
     }
     missing = [s for s in plans if not (data.get(s) and all((folder / f).is_file() for f in data[s]))]
     if not missing:

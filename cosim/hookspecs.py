@@ -69,3 +69,13 @@ def cosim_register_commands(register):
     on each to a callable taking the parsed arguments and returning an exit code
     (the contract of :mod:`cosim.cli`'s own command modules).
     """
+
+
+@hookspec
+def cosim_register_profiles(register):
+    """Provide parameter profiles a scenario selects with its ``profile`` field.
+
+    Call ``register(name, values)`` where ``values`` is ``{plugin name: {param: value}}``:
+    every component of a scenario using that plugin gets those parameters (``ideal``, the
+    parameters as the scenario gives them, needs no registration).
+    """

@@ -31,6 +31,7 @@ BUILTIN_PLUGINS: tuple[str, ...] = (
     "cosim_plugins.paths",
     "cosim_plugins.models",
     "cosim_plugins.effects",
+    "cosim_plugins.profiles",
 )
 
 KINDS = {
@@ -38,6 +39,7 @@ KINDS = {
     "path": "cosim_register_paths",
     "model": "cosim_register_models",
     "effect": "cosim_register_effects",
+    "profile": "cosim_register_profiles",
 }
 
 #: The module name of a plugin file loaded by :func:`load_plugin_file` starts so.

@@ -55,26 +55,43 @@ def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def _scenario_copy(name: str, out_dir: Path, quick: bool) -> Path:
-    """The scenario as run: shortened in quick mode, written next to the results."""
+#: The seeds every point of the feedback sweep is repeated over (full run; quick: the scenario's one).
+SWEEP_SEEDS = [7, 8, 9]
+#: The profiles every closed-loop experiment runs on (``--set profile=...``).
+PROFILES = ("ideal", "lab")
+
+
+def _scenario_copy(name: str, out_dir: Path, quick: bool, profile: str = "ideal") -> Path:
+    """The scenario as run: on ``profile``, shortened in quick mode, the interval sweep repeated over
+    :data:`SWEEP_SEEDS` in a full run, written next to the results."""
     data = yaml.safe_load((SCENARIOS / name).read_text())
+    data["profile"] = profile
+    key = "components.camera.params.interval_s"
     if quick:
         data["duration_s"] = min(float(data["duration_s"]), QUICK["duration_s"])
-        key = "components.camera.params.interval_s"
         if key in data.get("sweep", {}):
             data["sweep"][key] = QUICK["intervals"]
-    path = out_dir / "scenarios" / name
+    elif key in data.get("sweep", {}):
+        data["sweep"]["seed"] = SWEEP_SEEDS
+    stem = Path(name).stem + ("" if profile == "ideal" else f"_{profile}")
+    path = out_dir / "scenarios" / f"{stem}.yaml"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
 
-def _run_scenario(name: str, out_dir: Path, quick: bool, jobs: int = 1, workers=None) -> dict:
+def _run_scenario(name: str, out_dir: Path, quick: bool, jobs: int = 1, workers=None,
+                  profile: str = "ideal") -> dict:
     from cosim.runner import RunRequest, run
 
-    scenario = _scenario_copy(name, out_dir, quick)
-    return run(RunRequest(scenario, out_dir / "runs" / Path(name).stem, [], False, progress=True, jobs=jobs,
+    scenario = _scenario_copy(name, out_dir, quick, profile)
+    return run(RunRequest(scenario, out_dir / "runs" / scenario.stem, [], False, progress=True, jobs=jobs,
                           workers=workers))
+
+
+def _dataset_info(dataset) -> dict:
+    """A dataset's log files per split (for report.json)."""
+    return {s: [str(p) for p in getattr(dataset, s)] for s in ("training", "test", "validation")}
 
 
 def _train(dataset, out_dir: Path, quick: bool) -> dict:
@@ -170,19 +187,27 @@ def reproduce(out_dir: Path, quick: bool = False, jobs: int = 1) -> dict:
             ("table2", lambda: _train(results["dataset"], out_dir, quick)),
             ("table3", lambda: _compare(results["dataset"], out_dir)),
             ("table4", lambda: _run_scenario("realtime_prediction.yaml", out_dir, quick, jobs, pool)),
-            ("fig6", lambda: _run_scenario("feedback_sweep.yaml", out_dir, quick, jobs, pool)),
-            ("racetrack", lambda: {**_run_scenario("controllers_racetrack.yaml", out_dir, quick, jobs, pool),
-                                   "plots": _trajectory_plots("racetrack", out_dir)}),
-            ("helix", lambda: {**_run_scenario("controllers_helix.yaml", out_dir, quick, jobs, pool),
-                               "plots": _trajectory_plots("helix", out_dir)}),
         ]
+        for profile in PROFILES:
+            sfx = "" if profile == "ideal" else f"_{profile}"
+            if profile != "ideal":  # the profile's own logs, for the models its scenarios train on demand
+                steps.append((f"dataset{sfx}", lambda p=profile: _dataset_info(
+                    ensure_dataset(quick=quick, jobs=jobs, workers=pool, profile=p))))
+            steps += [
+                (f"fig6{sfx}", lambda p=profile: _run_scenario("feedback_sweep.yaml", out_dir, quick, jobs, pool, p)),
+                (f"racetrack{sfx}", lambda p=profile, x=sfx: {
+                    **_run_scenario("controllers_racetrack.yaml", out_dir, quick, jobs, pool, p),
+                    "plots": _trajectory_plots("racetrack" + x, out_dir)}),
+                (f"helix{sfx}", lambda p=profile, x=sfx: {
+                    **_run_scenario("controllers_helix.yaml", out_dir, quick, jobs, pool, p),
+                    "plots": _trajectory_plots("helix" + x, out_dir)}),
+            ]
         for i, (key, step) in enumerate(steps, 1):
             _say(f"[{i}/{len(steps)}] {key} ...")
             t0 = time.perf_counter()
             results[key] = step()
             timings[key] = round(time.perf_counter() - t0, 2)
-    results["dataset"] = {s: [str(p) for p in getattr(results["dataset"], s)]
-                          for s in ("training", "test", "validation")}
+    results["dataset"] = _dataset_info(results["dataset"])
     report = {"quick": quick, "jobs": jobs, "wall_time_s": round(time.perf_counter() - wall0, 1), "step_time_s": timings,
               "machine": {"cpus": os.cpu_count(), "platform": platform.platform()}, "paper": PAPER, "ours": results}
     (out_dir / "report.json").write_text(json.dumps(report, indent=2, default=str) + "\n")

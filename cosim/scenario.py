@@ -99,6 +99,9 @@ class Scenario(_Strict):
     duration_s: float = Field(gt=0)
     dt_s: float = Field(0.02, gt=0, le=1.0)
     seed: int = 0
+    profile: str = Field("ideal", description=(
+        "the parameter set of the components' physical and sensor effects: a profile a plugin registers "
+        "(see `cosim plugins`); its values are set before the file's --set overrides and sweep axes"))
     plugins: list[str] = Field(default_factory=list,
                                description="Python plugin files to load, relative to the scenario file")
     timeout_s: float = Field(30.0, gt=0, description="default per-step timeout of every component")
@@ -177,12 +180,56 @@ def load_document(path: str | Path, what: str = "scenario") -> tuple[dict, YamlD
 def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
     """Load, apply ``key=value`` overrides, validate. Errors name field and line."""
     data, node = load_document(path)
-    for item in overrides:
-        key, value = parse_override(item)
+    parsed = [parse_override(item) for item in overrides]
+    for key, value in parsed:
         set_dotted(data, key, value)
+    apply_profile(data, data.get("profile", "ideal"), source=str(path), explicit=_explicit_params(parsed))
     scenario = validate(data, source=str(path), node=node)
     load_scenario_plugins(scenario, Path(path).parent)
     return scenario
+
+
+def _explicit_params(parsed: list[tuple[str, Any]]) -> dict[str, set[str]]:
+    """Per component, the parameters ``--set`` overrides (and sweep axes) name: a profile leaves them."""
+    out: dict[str, set[str]] = {}
+    for key, value in parsed:
+        parts = key.split(".")
+        if len(parts) >= 3 and parts[0] == "components" and parts[2] == "params":
+            names = out.setdefault(parts[1], set())
+            if len(parts) > 3:
+                names.add(parts[3])
+            elif isinstance(value, dict):
+                names.update(value)
+        elif len(parts) == 2 and parts[0] == "components" and isinstance(value, dict):
+            out.setdefault(parts[1], set()).update(value.get("params") or {})
+    return out
+
+
+def apply_profile(data: dict, name: Any, source: str = "<scenario>",
+                  explicit: dict[str, set[str]] | None = None) -> None:
+    """Set the parameters profile ``name`` gives each component by its plugin (``ideal``: none).
+
+    A profile (registered by a plugin, :func:`cosim.plugins.registry` ``("profile")``) is
+    ``{plugin name: {param: value}}``; the values land in ``components.NAME.params`` of every
+    component using that plugin (after the overrides, so a sweep axis that swaps the plugin gets
+    the new plugin's), replacing the file's values but not those an override names (``explicit``:
+    ``{component: {param, ...}}``): ``--set`` and sweep axes win over the profile.
+    """
+    explicit = explicit or {}
+    from cosim.plugins import registry
+
+    profiles = registry("profile")
+    if name == "ideal" and name not in profiles:
+        return
+    if name not in profiles:
+        raise ScenarioError(f"{source}: profile {name!r} unknown; known: {', '.join(['ideal', *sorted(profiles)])}")
+    values = profiles[name]
+    for cname, comp in (data.get("components") or {}).items():
+        if isinstance(comp, dict) and comp.get("plugin") in values:
+            params = comp.get("params") or {}
+            keep = explicit.get(cname, set())
+            comp["params"] = {**params, **{k: v for k, v in values[comp["plugin"]].items() if k not in keep}}
+    data["profile"] = name
 
 
 def load_scenario_plugins(scenario: Scenario, base_dir: Path) -> None:
@@ -264,11 +311,16 @@ def set_dotted(data: dict, key: str, value: Any) -> None:
     cur[parts[-1]] = value
 
 
+#: top-level fields a sweep axis may name plainly (``seed: [1, 2, 3]`` repeats every run over seeds)
+TOP_LEVEL_AXES = ("seed", "profile", "duration_s")
+
+
 def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]]:
     """One ``(labels, overrides)`` per combination of the sweep axes (product order).
 
     An axis named by a dotted path (``components.camera.params.interval_s``)
-    sets that field; its label is the last part (``interval_s``). An axis with
+    sets that field; its label is the last part (``interval_s``); so does an
+    axis named by a top-level field (``seed``, ``profile``: :data:`TOP_LEVEL_AXES`). An axis with
     a plain name (``estimator``) lists mappings of dotted paths to values,
     each with an optional ``label`` (default: the first value) and any other
     plain keys as further labels (``model: physical``).
@@ -281,7 +333,7 @@ def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]
         overrides: list[str] = []
         for axis, value in zip(axes, combo):
             axis = axis[0]
-            if "." in axis:
+            if "." in axis or (axis in TOP_LEVEL_AXES and not isinstance(value, dict)):
                 overrides.append(f"{axis}={json.dumps(value)}")
                 labels[axis.rsplit(".", 1)[-1]] = value
                 continue

@@ -104,7 +104,7 @@ ROW_KEYS = ("status", "dir", "error", "host", "code", "artifacts")
 
 
 def label_keys(rows: list[dict]) -> list[str]:
-    return [k for k in rows[0] if k not in (*METRICS, *ROW_KEYS)] if rows else []
+    return [k for k in rows[0] if k not in (*METRICS, *ROW_KEYS, "seeds")] if rows else []
 
 
 def sweep_table(rows: list[dict]) -> str:
@@ -152,9 +152,74 @@ def _groups(rows: list[dict], axis: str) -> tuple[list[str], dict[tuple, list[di
     return others, {key: sorted(members, key=lambda r: r[axis]) for key, members in groups.items()}
 
 
+#: labels whose values repeat an experiment rather than change it: rows differing only in them are pooled
+REPLICATE_LABELS = ("seed",)
+
+
+def pool_replicates(rows: list[dict]) -> list[dict]:
+    """Rows differing only in a replicate label (``seed``) pooled into one: the tracking error's
+    mean is the mean of the runs' means, ``std`` their spread (sample standard deviation over the
+    seeds, 0 for one), ``max`` the largest, ``min_mean``/``max_mean`` the runs' extremes and ``n``
+    the number of runs; status ``ok`` only if every run's is. Rows without a replicate label pass."""
+    if not rows or not any(k in label_keys(rows) for k in REPLICATE_LABELS):
+        return rows
+    labels = [k for k in label_keys(rows) if k not in REPLICATE_LABELS]
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r[k] for k in labels), []).append(r)
+    out = []
+    for key, members in groups.items():
+        errs = [m["tracking_error_mm"] for m in members if m.get("tracking_error_mm")]
+        means = np.array([e["mean"] for e in errs])
+        pooled = None if not errs else {
+            "mean": float(means.mean()), "std": float(means.std(ddof=1)) if len(means) > 1 else 0.0,
+            "max": float(max(e["max"] for e in errs)), "min_mean": float(means.min()),
+            "max_mean": float(means.max()), "n": len(errs)}
+        status = "ok" if all(m["status"] == "ok" for m in members) and len(errs) == len(members) else "failed"
+        out.append({**dict(zip(labels, key)), "tracking_error_mm": pooled, "status": status,
+                    "seeds": [m[k] for m in members for k in REPLICATE_LABELS if k in m]})
+    return out
+
+
+def pooled_table(rows: list[dict]) -> str:
+    """Markdown table of :func:`pool_replicates`: per combination, the mean over the seeds, the spread."""
+    labels = [k for k in label_keys(rows) if k != "seeds"]
+    lines = ["| " + " | ".join([*labels, "seeds", "mean error [mm]", "spread over seeds (std) [mm]",
+                                "min / max of the seeds' means [mm]", "max [mm]", "status"]) + " |",
+             "|" + "---|" * (len(labels) + 6)]
+    for r in rows:
+        e = r.get("tracking_error_mm")
+        lines.append("| " + " | ".join([*(str(r[k]) for k in labels), str(len(r.get("seeds", []))),
+                                         _f(e, "mean"), _f(e, "std"),
+                                         f"{_f(e, 'min_mean')} / {_f(e, 'max_mean')}", _f(e, "max"),
+                                         r["status"]]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def monotonic_within_spread(rows: list[dict], axis: str, k: float = 2.0) -> list[dict]:
+    """Per group of pooled rows along ``axis``: whether the mean error never falls, from one value to
+    the next, by more than ``k`` times the two points' combined spread (a drop inside the seeds'
+    scatter is noise, a larger one a real non-monotonic curve). Lists the offending steps."""
+    out = []
+    others, groups = _groups(rows, axis)
+    for key, members in groups.items():
+        drops = []
+        for a, b in zip(members, members[1:]):
+            ea, eb = a.get("tracking_error_mm"), b.get("tracking_error_mm")
+            if not ea or not eb:
+                continue
+            allowed = k * float(np.hypot(ea.get("std", 0.0), eb.get("std", 0.0)))
+            if ea["mean"] - eb["mean"] > allowed:
+                drops.append([a[axis], b[axis], round(ea["mean"], 2), round(eb["mean"], 2)])
+        out.append({**dict(zip(others, key)), "axis": axis, "monotonic": not drops, "drops": drops})
+    return out
+
+
 def largest_below(rows: list[dict], threshold_mm: float) -> list[dict]:
     """Per group of the other labels, the largest value of each numeric axis whose mean
-    tracking error stays below ``threshold_mm`` (and every smaller value's too); None if none does."""
+    tracking error stays below ``threshold_mm`` (and every smaller value's too); None if none does.
+    Runs repeated over seeds are pooled first (:func:`pool_replicates`): the mean over the seeds decides."""
+    rows = pool_replicates(rows)
     out = []
     for axis in numeric_axes(rows):
         others, groups = _groups(rows, axis)
@@ -193,6 +258,7 @@ def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = Non
     import matplotlib.pyplot as plt
 
     files = []
+    rows = pool_replicates(rows)
     for axis in numeric_axes(rows):
         others, groups = _groups(rows, axis)
         fig, ax = plt.subplots(figsize=(7, 4.5))
@@ -200,7 +266,10 @@ def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = Non
             x = [r[axis] for r in members]
             y = [(r.get("tracking_error_mm") or {}).get("mean", np.nan) for r in members]
             marker, dash = STYLES[i % len(STYLES)]
-            ax.plot(x, y, marker=marker, ls=dash, ms=max(9 - 1.5 * i, 3), mfc="none" if i % 2 else None,
+            if any("seeds" in r for r in members):  # the seeds' spread as error bars
+                ax.errorbar(x, y, yerr=[(r.get("tracking_error_mm") or {}).get("std", 0.0) for r in members],
+                            fmt="none", capsize=3, lw=0.8, color=f"C{i}")
+            ax.plot(x, y, color=f"C{i}", marker=marker, ls=dash, ms=max(9 - 1.5 * i, 3), mfc="none" if i % 2 else None,
                     label=", ".join(f"{k}={v}" for k, v in zip(others, key)) or "run")
         if threshold_mm:
             ax.axhline(threshold_mm, color="k", ls="--", lw=1, label=f"{threshold_mm:g} mm")

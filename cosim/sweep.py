@@ -30,7 +30,8 @@ from typing import Any, Iterable, Sequence
 
 from cosim.jobs import Job, client_env, failed_summary, run_job, scenario_sources, unpack
 from cosim.scenario import Scenario, load_scenario, sweep_overrides
-from cosim.summary import METRICS, largest_below, sweep_plot, sweep_table
+from cosim.summary import (METRICS, largest_below, monotonic_within_spread, numeric_axes, pool_replicates,
+                           pooled_table, sweep_plot, sweep_table)
 
 #: How long past its own timeout a job may take to stop and write its outputs before it is given up.
 GIVE_UP_GRACE_S = 30.0
@@ -223,6 +224,11 @@ class SweepRecord:
             summary["status"] = "interrupted"
         table = sweep_table(rows)
         threshold = self.scenario.report.threshold_mm
+        pooled = pool_replicates(rows)
+        if pooled is not rows:
+            summary["pooled"] = pooled
+            summary["monotonic"] = [m for axis in numeric_axes(pooled) for m in monotonic_within_spread(pooled, axis)]
+            table += "\nPooled over the seeds:\n\n" + pooled_table(pooled)
         if threshold:
             summary["largest_below_threshold"] = largest_below(rows, threshold)
         summary["plots"] = [p.name for p in sweep_plot(rows, self.out, threshold, self.scenario.name)]

@@ -30,7 +30,7 @@ Noise:
 * Q from the model's measured multi-step residuals, fitted at set-up
   (:func:`~cosim_plugins.estimators.noise.fit_process_noise`, ~0.2 s) on raw
   logs: ``q_logs`` (paths or glob patterns), by default the paper dataset's
-  training logs (the short ones under ``COSIM_DATASET=quick``), over horizons
+  training logs (on the profile ``dataset`` names) (the short ones under ``COSIM_DATASET=quick``), over horizons
   up to ``q_horizon_s``. Or given outright: ``q_diag`` (per-step variances, 6
   or 9 entries in mm^2, (mm/s)^2). ``q_scale`` multiplies it.
 * ``drift`` (default on) adds a velocity offset d, the motion the model
@@ -74,6 +74,8 @@ from cosim_plugins.estimators.model_check import check_model_spec, model_files
 
 PARAMS = {
     "model": Param("sindy-linear", "model file (.npz) or kind (trained on demand), see `cosim plugins`"),
+    "dataset": Param("ideal", "profile whose paper dataset trains a model named by kind and gives the default "
+                     "logs Q is fitted on (the lab profile sets lab: lab models for a lab scenario)"),
     "latency_s": Param(0.0, "camera latency: capture to delivery [s], a multiple of dt", 0.0, 5.0),
     "noise_px": Param(0.5, "camera pixel noise, standard deviation [pixels]", 0.0, 100.0),
     "pixel_mm": Param(0.19, "camera pixel size in the tank [mm]", 1e-6, 10.0),
@@ -102,6 +104,8 @@ def _read(params) -> dict:
     p = read_params(params, PARAMS)
     if not isinstance(p["model"], str) or not p["model"]:
         raise ComponentError(f"parameter model={p['model']!r}: expected a model file path or kind name")
+    if not isinstance(p["dataset"], str) or not p["dataset"]:
+        raise ComponentError(f"parameter dataset={p['dataset']!r}: expected a profile name (ideal, lab, ...)")
     for key in ("q_logs", "q_diag"):
         if not isinstance(p[key], (list, tuple)):
             raise ComponentError(f"parameter {key}={p[key]!r}: expected a list")
@@ -141,12 +145,12 @@ class KalmanEstimator(Component):
     def prepare(cls, params) -> None:
         """Train a model named by kind and generate the logs Q is fitted on, if not cached yet."""
         p = _read(params)
-        _resolve(p["model"])
+        _resolve(p["model"], p["dataset"])
         if not p["q_diag"] and not p["q_logs"]:
             from cosim.dataset import ensure_dataset
             from cosim.identify.cache import quick_data
 
-            ensure_dataset(quick=quick_data())
+            ensure_dataset(quick=quick_data(), profile=p["dataset"])
 
     @classmethod
     def artifacts(cls, params) -> list:
@@ -157,7 +161,7 @@ class KalmanEstimator(Component):
         check_model_spec(p["model"])
         self.dt = float(params["dt"])
         self.latency = _ticks(p["latency_s"], self.dt)
-        model = _resolve(p["model"])
+        model = _resolve(p["model"], p["dataset"])
         r = noise.camera_variance(p["noise_px"], p["pixel_mm"])
         tau = p["drift_tau_s"] if p["drift"] else None
         self.noise = self._process_noise(model, p, r, tau)
@@ -175,7 +179,7 @@ class KalmanEstimator(Component):
             q = np.asarray(p["q_diag"], dtype=float)
             drift0 = q[6:] / (1.0 - noise.drift_decay(self.dt, tau) ** 2) if tau else np.zeros(3)
             return noise.ProcessNoise(q=q, drift0=drift0)
-        dataset = _dataset(p["q_logs"])
+        dataset = _dataset(p["q_logs"], p["dataset"])
         if abs(dataset.dt_s - self.dt) > 1e-6:
             raise ComponentError(f"the logs for Q are sampled every {dataset.dt_s * 1e3:g} ms but the scenario "
                                  f"steps {self.dt * 1e3:g} ms; give logs at the scenario's period or q_diag")
@@ -244,17 +248,18 @@ def _chi2_3dof(prob: float) -> float:
     return float(chi2.ppf(prob, 3))
 
 
-def _resolve(spec: str):
+def _resolve(spec: str, profile: str = "ideal"):
     from cosim.identify.cache import resolve_model
 
     try:
-        return resolve_model(spec)
+        return resolve_model(spec, profile=profile)
     except UserError as exc:
         raise ComponentError(f"model {spec!r}: {exc}") from None
 
 
-def _dataset(patterns: list[str]):
-    """The raw logs named by ``patterns`` (default: the paper training logs), read once per process."""
+def _dataset(patterns: list[str], profile: str = "ideal"):
+    """The raw logs named by ``patterns`` (default: the paper training logs on ``profile``), read once per
+    process."""
     from cosim.identify.cache import quick_data
     from cosim.identify.dataset import Dataset
 
@@ -268,7 +273,10 @@ def _dataset(patterns: list[str]):
     else:
         from cosim.dataset import ensure_dataset
 
-        files = [str(f) for f in ensure_dataset(quick=quick_data()).training]
+        try:
+            files = [str(f) for f in ensure_dataset(quick=quick_data(), profile=profile).training]
+        except UserError as exc:
+            raise ComponentError(f"dataset: {exc}") from None
     key = tuple((f, Path(f).stat().st_mtime_ns) for f in files)  # a regenerated log is read again
     if key not in _DATASETS:
         try:
