@@ -51,6 +51,16 @@ Without it, on the lab profile (40 ms, 40 mm/s) the loop rang and held the
 swimmer ~3 mm below the path: racetrack 2.98 mm against PI's 0.80 mm
 (30 s, seed 1), compensated 1.07 mm; the helix 3.11 -> 1.18 mm (PI 1.01).
 
+Position terms (``position_terms``, default false): a model identified on
+closed-loop logs learns a dependence on the absolute position that the
+swimmer, in a field uniform over the workspace, does not have (the PI steers
+by the position, so velocity and position correlate in its logs): the lab
+model's y row reads ``y' = 1.0039 y + ...`` per 20 ms, 7.8 mm/s outwards at
+the racetrack's y = 40 mm, so the MPC steered inwards against a drift that
+is not there (mean radial offset -0.92 mm, on the straights too). Without
+those columns (identity on p, none from p into v): racetrack 1.07 -> 0.53 mm
+(lab, 30 s, seed 1, PI 0.80 mm).
+
 The pure-pursuit tracker is stepped every period in all three (its closest
 index orders the path following).
 """
@@ -96,6 +106,8 @@ PARAMS = {
     "latency_s": Param(0.0, "age of the state it is given: the camera's latency when the estimator does not "
                        "compensate it (passthrough); 0 behind a filter that outputs the present (estimator.kf "
                        "with its latency_s) [s], a multiple of dt", 0.0, 5.0),
+    "position_terms": Param(False, "keep the model's dependence on the absolute position (false: the dynamics "
+                            "are the same everywhere in the tank, p' = p + ..., v' independent of p)"),
     "hover_hz": Param(0.0, "spin frequency (along x) of the hover point a nonlinear model is linearised at", 0.0, 60.0),
 }
 
@@ -129,17 +141,30 @@ def check_params(params) -> dict:
     return p
 
 
-def model_matrices(model, dt_s: float, hover_hz: float = 0.0):
+def without_position_terms(A: np.ndarray) -> np.ndarray:
+    """``A`` with the state's dependence on the absolute position removed: identity on p, zero p -> v."""
+    A = np.array(A, dtype=float)
+    A[:3, :3] = np.eye(3)
+    A[3:, :3] = 0.0
+    return A
+
+
+def model_matrices(model, dt_s: float, hover_hz: float = 0.0, position_terms: bool = True):
     """(A (6, 6), B (6, 3), c (6,)) of ``model`` over one step of ``dt_s`` [s] (mm, mm/s, Hz).
 
     Linear models use ``linear_matrices()`` composed ``dt_s / model.dt_s`` times;
     others are linearised at hover (p = 0, v = 0, u = [hover_hz, 0, 0]) over dt_s.
+    ``position_terms=False``: the model's one step without its position columns
+    (:func:`without_position_terms`), composed.
     """
     try:
         A, B, c = (np.asarray(m, dtype=float) for m in model.linear_matrices())
     except NotImplementedError:
         u_h = np.array([hover_hz, 0.0, 0.0])
-        return tuple(np.asarray(m, dtype=float) for m in model.jacobians(np.zeros(6), u_h, dt_s))
+        A, B, c = (np.asarray(m, dtype=float) for m in model.jacobians(np.zeros(6), u_h, dt_s))
+        return (A if position_terms else without_position_terms(A)), B, c
+    if not position_terms:
+        A = without_position_terms(A)
     ratio = dt_s / model.dt_s
     n = int(round(ratio))
     if n < 1 or abs(ratio - n) > 1e-6:
@@ -196,7 +221,7 @@ class MPCController(PathController):
 
         try:
             model = resolve_model(str(p["model"]), profile=str(p["dataset"]))
-            A, B, c = model_matrices(model, self.dt, p["hover_hz"])
+            A, B, c = model_matrices(model, self.dt, p["hover_hz"], bool(p["position_terms"]))
         except (UserError, ValueError, RuntimeError) as exc:
             raise ComponentError(f"model {p['model']!r}: {exc}") from None
         if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B)) and np.all(np.isfinite(c))):
