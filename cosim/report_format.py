@@ -202,8 +202,9 @@ def paths(report: dict) -> list[str]:
                   + f"; the paper's finding (MPC comparable to PI, within 30 %) holds on "
                   f"{', '.join(within) if within else 'neither path'}."
                   + ("" if len(within) == len(ratios) else
-                     " The MPC predicts with the linear SINDy model identified on the ideal dataset at 20 mm/s; "
-                     "at the lab's cruise speed it extrapolates, while PI needs no model."), ""]
+                     " The MPC predicts with the linear SINDy model identified on the profile's own dataset, "
+                     "without its position terms, and steps the camera's late frame forward over its latency "
+                     "(README *Profiles*)."), ""]
     m = report["paper"]["mpc_solve_ms"]
     lines += [f"The paper's MPC (MATLAB fmincon, SQP) took {m[0]} ± {m[1]} ms per solve; ours is the "
               "same objective as a condensed quadratic program set up once and solved warm-started by "

@@ -224,7 +224,9 @@ def update_readme(report_dir: Path, readme: Path, assets: Path) -> None:
     """Put the report's tables into ``readme`` between the results markers.
 
     The report's title and run details are dropped (the README's own heading
-    introduces it); plots are copied into ``assets`` and linked from there.
+    introduces it); plots are copied into ``assets`` and linked from there (a plot
+    whose name an earlier one took gets its folder's name in front: the lab
+    profile's ``feedback_sweep_lab/sweep_interval_s.png``).
     """
     import re
     import shutil
@@ -233,9 +235,15 @@ def update_readme(report_dir: Path, readme: Path, assets: Path) -> None:
     body = (report_dir / "report.md").read_text().split("\n## ", 1)[1]
     assets.mkdir(parents=True, exist_ok=True)
 
+    used: dict[str, Path] = {}  # asset name -> the plot copied there (two profiles' plots share names)
+
     def relink(match: re.Match) -> str:
         source = report_dir / match[2]
-        target = assets / source.name
+        name = source.name
+        if used.get(name, source) != source:
+            name = f"{source.parent.name}_{name}"
+        used[name] = source
+        target = assets / name
         shutil.copyfile(source, target)
         return f"![{match[1]}]({target.relative_to(readme.parent)})"
 

@@ -41,6 +41,26 @@ Reference (``reference``):
   ``r_k`` at arc length ``lead_mm + k * speed_mm_s * dt`` beyond it;
 * ``target``: the pure-pursuit target itself for every k.
 
+Latency (``latency_s``, default 0): a camera frame delivered ``latency_s``
+after its capture gives, behind the passthrough estimator, the state of that
+long ago; the controller steps it forward with its own model and the
+commands it sent since (``x <- A x + B u + c``, as it predicts the horizon)
+and builds the reference from that present state. Behind a filter that
+already outputs the present (``estimator.kf`` with its ``latency_s``) set 0.
+Without it, on the lab profile (40 ms, 40 mm/s) the loop rang and held the
+swimmer ~3 mm below the path: racetrack 2.98 mm against PI's 0.80 mm
+(30 s, seed 1), compensated 1.07 mm; the helix 3.11 -> 1.18 mm (PI 1.01).
+
+Position terms (``position_terms``, default false): a model identified on
+closed-loop logs learns a dependence on the absolute position that the
+swimmer, in a field uniform over the workspace, does not have (the PI steers
+by the position, so velocity and position correlate in its logs): the lab
+model's y row reads ``y' = 1.0039 y + ...`` per 20 ms, 7.8 mm/s outwards at
+the racetrack's y = 40 mm, so the MPC steered inwards against a drift that
+is not there (mean radial offset -0.92 mm, on the straights too). Without
+those columns (identity on p, none from p into v): racetrack 1.07 -> 0.53 mm
+(lab, 30 s, seed 1, PI 0.80 mm).
+
 The pure-pursuit tracker is stepped every period in all three (its closest
 index orders the path following).
 """
@@ -83,6 +103,11 @@ PARAMS = {
     "backend": Param("osqp", "QP implementation: 'osqp' (condensed, fast) or 'cvxpy' (reference)"),
     "eps": Param(1e-4, "OSQP absolute and relative tolerance", 1e-10, 1.0),
     "max_iter": Param(200, "OSQP iteration limit per solve", 1, 100000),
+    "latency_s": Param(0.0, "age of the state it is given: the camera's latency when the estimator does not "
+                       "compensate it (passthrough); 0 behind a filter that outputs the present (estimator.kf "
+                       "with its latency_s) [s], a multiple of dt", 0.0, 5.0),
+    "position_terms": Param(False, "keep the model's dependence on the absolute position (false: the dynamics "
+                            "are the same everywhere in the tank, p' = p + ..., v' independent of p)"),
     "hover_hz": Param(0.0, "spin frequency (along x) of the hover point a nonlinear model is linearised at", 0.0, 60.0),
 }
 
@@ -116,17 +141,30 @@ def check_params(params) -> dict:
     return p
 
 
-def model_matrices(model, dt_s: float, hover_hz: float = 0.0):
+def without_position_terms(A: np.ndarray) -> np.ndarray:
+    """``A`` with the state's dependence on the absolute position removed: identity on p, zero p -> v."""
+    A = np.array(A, dtype=float)
+    A[:3, :3] = np.eye(3)
+    A[3:, :3] = 0.0
+    return A
+
+
+def model_matrices(model, dt_s: float, hover_hz: float = 0.0, position_terms: bool = True):
     """(A (6, 6), B (6, 3), c (6,)) of ``model`` over one step of ``dt_s`` [s] (mm, mm/s, Hz).
 
     Linear models use ``linear_matrices()`` composed ``dt_s / model.dt_s`` times;
     others are linearised at hover (p = 0, v = 0, u = [hover_hz, 0, 0]) over dt_s.
+    ``position_terms=False``: the model's one step without its position columns
+    (:func:`without_position_terms`), composed.
     """
     try:
         A, B, c = (np.asarray(m, dtype=float) for m in model.linear_matrices())
     except NotImplementedError:
         u_h = np.array([hover_hz, 0.0, 0.0])
-        return tuple(np.asarray(m, dtype=float) for m in model.jacobians(np.zeros(6), u_h, dt_s))
+        A, B, c = (np.asarray(m, dtype=float) for m in model.jacobians(np.zeros(6), u_h, dt_s))
+        return (A if position_terms else without_position_terms(A)), B, c
+    if not position_terms:
+        A = without_position_terms(A)
     ratio = dt_s / model.dt_s
     n = int(round(ratio))
     if n < 1 or abs(ratio - n) > 1e-6:
@@ -168,6 +206,11 @@ class MPCController(PathController):
         self.spec = MPCSpec(A=A, B=B, c=c, horizon=int(p["horizon"]), q=q, r=r, ru=ru, f_max_hz=p["f_max_hz"],
                             u_max=p["u_max"], du_max=p["du_max"], eps=p["eps"], max_iter=int(p["max_iter"]))
         self.qp = CondensedMPC(self.spec) if p["backend"] == "osqp" else CvxpyMPC(self.spec)
+        ratio = p["latency_s"] / self.dt
+        self.latency = int(round(ratio))
+        if abs(ratio - self.latency) > 1e-6:
+            raise ComponentError(f"latency_s={p['latency_s']} s is not a multiple of the step dt={self.dt} s")
+        self.sent: list[np.ndarray] = []  # the last `latency` commands u (normalised), oldest first
         self.u_prev = np.zeros(3)
         self.failures = 0
         self.last_plan: np.ndarray | None = None
@@ -178,7 +221,7 @@ class MPCController(PathController):
 
         try:
             model = resolve_model(str(p["model"]), profile=str(p["dataset"]))
-            A, B, c = model_matrices(model, self.dt, p["hover_hz"])
+            A, B, c = model_matrices(model, self.dt, p["hover_hz"], bool(p["position_terms"]))
         except (UserError, ValueError, RuntimeError) as exc:
             raise ComponentError(f"model {p['model']!r}: {exc}") from None
         if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B)) and np.all(np.isfinite(c))):
@@ -199,9 +242,11 @@ class MPCController(PathController):
         s = self.spec
         if not np.all(np.isfinite(pos)):  # no estimate (yet): ramp to zero within the Delta-u bound
             self.u_prev = clip_first(np.zeros(3), self.u_prev, s.u_max, s.du_max)
+            self._remember(self.u_prev)
             return 2 * np.pi * s.f_max_hz * self.u_prev
         vel = vel if np.all(np.isfinite(vel)) else np.zeros(3)
-        x = np.concatenate([pos, vel]) * 1e3  # [mm, mm/s]
+        x = self.present_state(np.concatenate([pos, vel]) * 1e3)  # [mm, mm/s]
+        pos, vel = x[:3] * 1e-3, x[3:] * 1e-3
         ref = self.horizon_reference(t, pos, vel) * 1e3  # (N, 3) [mm]
         plan = self.qp.solve(x, ref, self.u_prev)
         if plan is None:
@@ -212,7 +257,20 @@ class MPCController(PathController):
         if f_norm > self.p["f_norm_max_hz"]:
             u0 = u0 * (self.p["f_norm_max_hz"] / f_norm)  # towards zero: the bounds still hold
         self.u_prev = u0
+        self._remember(u0)
         return 2 * np.pi * s.f_max_hz * u0
+
+    def _remember(self, u: np.ndarray) -> None:
+        if self.latency:
+            self.sent = [*self.sent, u.copy()][-self.latency:]
+
+    def present_state(self, x: np.ndarray) -> np.ndarray:
+        """The state ``latency`` periods after ``x`` [mm, mm/s]: the model stepped with the commands
+        sent since (the frame's capture), as the horizon itself is predicted; ``x`` without latency."""
+        s = self.spec
+        for u in self.sent:
+            x = s.A @ x + s.B @ (u * s.f_max_hz) + s.c
+        return x
 
     def horizon_reference(self, t: float, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
         """Reference positions r_1..r_N, shape (N, 3) [m] (see the module docstring)."""

@@ -36,7 +36,9 @@ LAB = {
     "estimator.kf": {"latency_s": LAB_LATENCY_S, "noise_px": LAB_NOISE_PX, "dataset": "lab"},
     "controller.pi": {"speed_mm_s": LAB_CRUISE_MM_S},
     "controller.mrac": {"speed_mm_s": LAB_CRUISE_MM_S},
-    "controller.mpc": {"speed_mm_s": LAB_CRUISE_MM_S, "dataset": "lab"},
+    # the MPC predicts its passthrough state over the camera latency with its own model (set
+    # latency_s: 0 when a filter that outputs the present, estimator.kf, feeds it)
+    "controller.mpc": {"speed_mm_s": LAB_CRUISE_MM_S, "dataset": "lab", "latency_s": LAB_LATENCY_S},
     # a tank of still-looking water: thermal convection from the coils' heat (1 mm/s), the
     # walls' extra drag near them; the other effects (actuation lag, heading dynamics,
     # gradient force, anisotropic drag) are on in both profiles
