@@ -30,6 +30,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from cosim.scenario import profile_values
+
 REPO = Path(__file__).resolve().parents[1]
 PAPER_SCENARIOS = REPO / "scenarios" / "paper"
 #: Simulated seconds per case with ``quick`` (the full cases last 290 s, 14,500 rows).
@@ -73,27 +75,14 @@ def _fingerprint(quick: bool, profile: str = "ideal") -> str:
     h.update(Path(ensure_fmu()).read_bytes())
     h.update(b"quick" if quick else b"full")
     if profile != "ideal":
-        h.update(json.dumps({"profile": profile, "values": profile_values(profile)}, sort_keys=True,
-                            default=str).encode())
+        values = profile_values(profile, "the paper dataset")
+        h.update(json.dumps({"profile": profile, "values": values}, sort_keys=True, default=str).encode())
     return h.hexdigest()[:16]
 
 
 def profile_overrides(profile: str) -> list[str]:
     """The scenario overrides that run the dataset's scenarios on ``profile``."""
     return [] if profile == "ideal" else [f"profile={profile}"]
-
-
-def profile_values(profile: str) -> dict:
-    """The values profile ``profile`` sets (``{plugin: {param: value}}``); unknown: a UserError."""
-    from cosim.errors import UserError
-    from cosim.plugins import registry
-
-    profiles = registry("profile")
-    if profile == "ideal" and profile not in profiles:
-        return {}
-    if profile not in profiles:
-        raise UserError(f"profile {profile!r} unknown; known: {', '.join(['ideal', *sorted(profiles)])}")
-    return profiles[profile]
 
 
 def dataset_folder(quick: bool, profile: str = "ideal") -> Path:

@@ -46,3 +46,12 @@ def read_params(given: Mapping[str, Any], spec: Mapping[str, Param]) -> dict[str
             value = float(value) if isinstance(default, float) else value
         out[key] = value
     return out
+
+
+def whole_ticks(value_s: float, dt_s: float, name: str) -> int:
+    """``value_s`` [s] in steps of ``dt_s`` [s]; a value off the step grid raises
+    :class:`~cosim.component.ComponentError` naming the parameter ``name``."""
+    n = value_s / dt_s
+    if abs(n - round(n)) > 1e-6:
+        raise ComponentError(f"{name}={value_s} s is not a multiple of the step dt={dt_s} s")
+    return int(round(n))

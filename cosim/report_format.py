@@ -107,12 +107,13 @@ PROFILE_NOTE = {
 }
 
 
-def _sfx(profile: str) -> str:
+def profile_suffix(profile: str) -> str:
+    """What names the files and report keys of a profile's runs: nothing for ideal, ``_<profile>`` else."""
     return "" if profile == "ideal" else f"_{profile}"
 
 
 def _profiles(report: dict, key: str) -> list[str]:
-    return [p for p in ("ideal", "lab") if f"{key}{_sfx(p)}" in report["ours"]]
+    return [p for p in ("ideal", "lab") if f"{key}{profile_suffix(p)}" in report["ours"]]
 
 
 def fig6(report: dict) -> list[str]:
@@ -123,7 +124,7 @@ def fig6(report: dict) -> list[str]:
 
 
 def _fig6_profile(report: dict, profile: str) -> list[str]:
-    result = report["ours"][f"fig6{_sfx(profile)}"]
+    result = report["ours"][f"fig6{profile_suffix(profile)}"]
     pooled = result.get("pooled") or _sweep(result)
     rows = [[str(r.get("estimator")), NAMES.get(r.get("model"), str(r.get("model"))), _n(r.get("interval_s"), 2),
              _n((r.get("tracking_error_mm") or {}).get("mean")),
@@ -133,7 +134,8 @@ def _fig6_profile(report: dict, profile: str) -> list[str]:
     best_rows = [[str(b.get("estimator")), NAMES.get(b.get("model"), str(b.get("model"))),
                   _n(b.get("largest_below"), 2)] for b in result.get("largest_below_threshold", [])]
     mono = {(m.get("estimator"), m.get("model")): m for m in result.get("monotonic", [])}
-    plots = [f"![tracking error against the feedback interval ({profile})](runs/feedback_sweep{_sfx(profile)}/{p})"
+    folder = f"runs/feedback_sweep{profile_suffix(profile)}"
+    plots = [f"![tracking error against the feedback interval ({profile})]({folder}/{p})"
              for p in result.get("plots", [])]
     largest = {(b.get("estimator"), b.get("model")): b.get("largest_below")
                for b in result.get("largest_below_threshold", [])}
@@ -179,7 +181,7 @@ def paths(report: dict) -> list[str]:
         lines += [f"### Profile: {profile}", ""]
         ratios = {}
         for key, title in (("racetrack", "racetrack (Fig. 3)"), ("helix", "helix + racetrack (Fig. 7)")):
-            res = report["ours"].get(f"{key}{_sfx(profile)}")
+            res = report["ours"].get(f"{key}{profile_suffix(profile)}")
             if not res:
                 continue
             rows, means = [], {}

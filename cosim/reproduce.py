@@ -73,7 +73,7 @@ def _scenario_copy(name: str, out_dir: Path, quick: bool, profile: str = "ideal"
             data["sweep"][key] = QUICK["intervals"]
     elif key in data.get("sweep", {}):
         data["sweep"]["seed"] = SWEEP_SEEDS
-    stem = Path(name).stem + ("" if profile == "ideal" else f"_{profile}")
+    stem = Path(name).stem + report_format.profile_suffix(profile)
     path = out_dir / "scenarios" / f"{stem}.yaml"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(yaml.safe_dump(data, sort_keys=False))
@@ -189,7 +189,7 @@ def reproduce(out_dir: Path, quick: bool = False, jobs: int = 1) -> dict:
             ("table4", lambda: _run_scenario("realtime_prediction.yaml", out_dir, quick, jobs, pool)),
         ]
         for profile in PROFILES:
-            sfx = "" if profile == "ideal" else f"_{profile}"
+            sfx = report_format.profile_suffix(profile)
             if profile != "ideal":  # the profile's own logs, for the models its scenarios train on demand
                 steps.append((f"dataset{sfx}", lambda p=profile: _dataset_info(
                     ensure_dataset(quick=quick, jobs=jobs, workers=pool, profile=p))))

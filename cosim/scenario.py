@@ -216,20 +216,26 @@ def apply_profile(data: dict, name: Any, source: str = "<scenario>",
     ``{component: {param, ...}}``): ``--set`` and sweep axes win over the profile.
     """
     explicit = explicit or {}
-    from cosim.plugins import registry
-
-    profiles = registry("profile")
-    if name == "ideal" and name not in profiles:
-        return
-    if name not in profiles:
-        raise ScenarioError(f"{source}: profile {name!r} unknown; known: {', '.join(['ideal', *sorted(profiles)])}")
-    values = profiles[name]
+    values = profile_values(name, source)
     for cname, comp in (data.get("components") or {}).items():
         if isinstance(comp, dict) and comp.get("plugin") in values:
             params = comp.get("params") or {}
             keep = explicit.get(cname, set())
             comp["params"] = {**params, **{k: v for k, v in values[comp["plugin"]].items() if k not in keep}}
     data["profile"] = name
+
+
+def profile_values(name: Any, source: str = "<scenario>") -> dict:
+    """The values profile ``name`` sets, ``{plugin name: {param: value}}`` (``ideal``, unless a plugin
+    registers it: none); an unknown profile raises :class:`ScenarioError` naming ``source``."""
+    from cosim.plugins import registry
+
+    profiles = registry("profile")
+    if name == "ideal" and name not in profiles:
+        return {}
+    if name not in profiles:
+        raise ScenarioError(f"{source}: profile {name!r} unknown; known: {', '.join(['ideal', *sorted(profiles)])}")
+    return profiles[name]
 
 
 def load_scenario_plugins(scenario: Scenario, base_dir: Path) -> None:

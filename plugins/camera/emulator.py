@@ -15,7 +15,7 @@ from collections import deque
 import numpy as np
 
 from cosim import Component, ComponentError, Port
-from cosim.params import Param, read_params
+from cosim.params import Param, read_params, whole_ticks
 
 PARAMS = {
     "interval_s": Param(0.02, "time between captured frames [s], a multiple of dt", 0.0, 60.0),
@@ -32,13 +32,6 @@ PARAMS = {
 CAMERA_AXES = np.array([0, 1, 0, 2])
 
 
-def _ticks(value_s: float, dt: float, name: str) -> int:
-    n = value_s / dt
-    if abs(n - round(n)) > 1e-6:
-        raise ComponentError(f"{name}={value_s} s is not a multiple of the step dt={dt} s")
-    return int(round(n))
-
-
 class CameraEmulator(Component):
     """Two-camera position measurement: noise, quantisation, outliers, drops, latency, sparse frames."""
 
@@ -48,10 +41,10 @@ class CameraEmulator(Component):
     def setup(self, params, rng):
         self.p = read_params(params, PARAMS)
         dt = params["dt"]
-        self.interval = _ticks(self.p["interval_s"], dt, "interval_s")
+        self.interval = whole_ticks(self.p["interval_s"], dt, "interval_s")
         if self.interval < 1:
             raise ComponentError("interval_s must be at least one step")
-        self.latency = _ticks(self.p["latency_s"], dt, "latency_s")
+        self.latency = whole_ticks(self.p["latency_s"], dt, "latency_s")
         self.rng = rng
         self.pixel_m = self.p["pixel_mm"] * 1e-3
         self.queue: deque = deque()

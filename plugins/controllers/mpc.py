@@ -67,12 +67,13 @@ index orders the path following).
 
 from __future__ import annotations
 
+from collections import deque
 from pathlib import Path
 
 import numpy as np
 
 from cosim import ComponentError
-from cosim.params import Param, read_params
+from cosim.params import Param, read_params, whole_ticks
 from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.mpc_qp import CondensedMPC, CvxpyMPC, MPCSpec, clip_first
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
@@ -206,11 +207,8 @@ class MPCController(PathController):
         self.spec = MPCSpec(A=A, B=B, c=c, horizon=int(p["horizon"]), q=q, r=r, ru=ru, f_max_hz=p["f_max_hz"],
                             u_max=p["u_max"], du_max=p["du_max"], eps=p["eps"], max_iter=int(p["max_iter"]))
         self.qp = CondensedMPC(self.spec) if p["backend"] == "osqp" else CvxpyMPC(self.spec)
-        ratio = p["latency_s"] / self.dt
-        self.latency = int(round(ratio))
-        if abs(ratio - self.latency) > 1e-6:
-            raise ComponentError(f"latency_s={p['latency_s']} s is not a multiple of the step dt={self.dt} s")
-        self.sent: list[np.ndarray] = []  # the last `latency` commands u (normalised), oldest first
+        #: the commands u (normalised) sent over the camera's latency, oldest first
+        self.sent: deque[np.ndarray] = deque(maxlen=whole_ticks(p["latency_s"], self.dt, "latency_s"))
         self.u_prev = np.zeros(3)
         self.failures = 0
         self.last_plan: np.ndarray | None = None
@@ -242,7 +240,7 @@ class MPCController(PathController):
         s = self.spec
         if not np.all(np.isfinite(pos)):  # no estimate (yet): ramp to zero within the Delta-u bound
             self.u_prev = clip_first(np.zeros(3), self.u_prev, s.u_max, s.du_max)
-            self._remember(self.u_prev)
+            self.sent.append(self.u_prev)
             return 2 * np.pi * s.f_max_hz * self.u_prev
         vel = vel if np.all(np.isfinite(vel)) else np.zeros(3)
         x = self.present_state(np.concatenate([pos, vel]) * 1e3)  # [mm, mm/s]
@@ -257,12 +255,8 @@ class MPCController(PathController):
         if f_norm > self.p["f_norm_max_hz"]:
             u0 = u0 * (self.p["f_norm_max_hz"] / f_norm)  # towards zero: the bounds still hold
         self.u_prev = u0
-        self._remember(u0)
+        self.sent.append(u0)
         return 2 * np.pi * s.f_max_hz * u0
-
-    def _remember(self, u: np.ndarray) -> None:
-        if self.latency:
-            self.sent = [*self.sent, u.copy()][-self.latency:]
 
     def present_state(self, x: np.ndarray) -> np.ndarray:
         """The state ``latency`` periods after ``x`` [mm, mm/s]: the model stepped with the commands

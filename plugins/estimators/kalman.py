@@ -30,7 +30,7 @@ Noise:
 * Q from the model's measured multi-step residuals, fitted at set-up
   (:func:`~cosim_plugins.estimators.noise.fit_process_noise`, ~0.2 s) on raw
   logs: ``q_logs`` (paths or glob patterns), by default the paper dataset's
-  training logs (on the profile ``dataset`` names) (the short ones under ``COSIM_DATASET=quick``), over horizons
+  training logs on the profile ``dataset`` names (the short ones under ``COSIM_DATASET=quick``), over horizons
   up to ``q_horizon_s``. Or given outright: ``q_diag`` (per-step variances, 6
   or 9 entries in mm^2, (mm/s)^2). ``q_scale`` multiplies it.
 * ``drift`` (default on) adds a velocity offset d, the motion the model
@@ -67,7 +67,7 @@ import numpy as np
 
 from cosim import Component, ComponentError, Port
 from cosim.errors import UserError
-from cosim.params import Param, read_params
+from cosim.params import Param, read_params, whole_ticks
 from cosim_plugins.estimators import noise
 from cosim_plugins.estimators.ekf import MultiStepEKF
 from cosim_plugins.estimators.model_check import check_model_spec, model_files
@@ -160,7 +160,7 @@ class KalmanEstimator(Component):
         p = self.p = _read(params)
         check_model_spec(p["model"])
         self.dt = float(params["dt"])
-        self.latency = _ticks(p["latency_s"], self.dt)
+        self.latency = whole_ticks(p["latency_s"], self.dt, "latency_s")
         model = _resolve(p["model"], p["dataset"])
         r = noise.camera_variance(p["noise_px"], p["pixel_mm"])
         tau = p["drift_tau_s"] if p["drift"] else None
@@ -233,13 +233,6 @@ class KalmanEstimator(Component):
             f.predict(entries[k - 1][1])
             entries[k][0] = f.snapshot()
         return nu, nis
-
-
-def _ticks(value_s: float, dt: float) -> int:
-    n = value_s / dt
-    if abs(n - round(n)) > 1e-6:
-        raise ComponentError(f"latency_s={value_s} s is not a multiple of the step dt={dt} s")
-    return int(round(n))
 
 
 def _chi2_3dof(prob: float) -> float:

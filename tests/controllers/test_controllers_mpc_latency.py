@@ -9,6 +9,7 @@ model, identified at 20 mm/s, is too wrong for the prediction to help: 2.54 agai
 
 from __future__ import annotations
 
+from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -49,17 +50,17 @@ def test_present_state_steps_the_model_with_the_commands_sent_since():
     rng = np.random.default_rng(3)
     A, B, c = np.eye(6) + 0.01 * rng.standard_normal((6, 6)), rng.standard_normal((6, 3)), rng.standard_normal(6)
     ctl = MPCController.__new__(MPCController)
-    ctl.spec, ctl.latency, ctl.sent = MPCSpec(A=A, B=B, c=c, f_max_hz=20.0), 2, []
+    ctl.spec, ctl.sent = MPCSpec(A=A, B=B, c=c, f_max_hz=20.0), deque(maxlen=2)
     for u in rng.uniform(-1, 1, (4, 3)):
-        ctl._remember(u)
+        ctl.sent.append(u)
     x = rng.standard_normal(6)
     expect = x
     for u in ctl.sent:
         expect = A @ expect + B @ (20.0 * u) + c
     assert len(ctl.sent) == 2
     np.testing.assert_allclose(ctl.present_state(x), expect)
-    ctl.latency, ctl.sent = 0, []
-    ctl._remember(np.ones(3))
+    ctl.sent = deque(maxlen=0)
+    ctl.sent.append(np.ones(3))
     np.testing.assert_allclose(ctl.present_state(x), x)
 
 
