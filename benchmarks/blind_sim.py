@@ -771,7 +771,7 @@ u = omega Hz, force uN, time s), its parameters free and initialised at the trut
 import numpy as np
 
 from cosim import hookimpl
-from cosim.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, Param
 {constants}
 
 {laws}

@@ -38,7 +38,7 @@ DT_S = 0.02
 
 def racetrack(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Positions (n, 3) [m] and unit axes (n, 3) along the racetrack (30 mm straights, 40 mm radius)."""
-    from cosim.paths import make_path
+    from cosim.scenario.paths import make_path
 
     polyline = make_path("racetrack", {"straight_mm": 30, "radius_mm": 40}).points(0.0)
     closed = np.vstack([polyline, polyline[:1]])

@@ -27,7 +27,7 @@ HIDDEN = ["components.plant.params.background_flow_on=true", "components.plant.p
 
 def make_logs(cache: Path) -> tuple[list[Path], float]:
     """Five 60 s logs (two sweeps of the scenario with different seeds), cached."""
-    from cosim.runner import RunRequest, run
+    from cosim.runtime.runner import RunRequest, run
 
     t0 = time.perf_counter()
     files: list[Path] = []
@@ -44,9 +44,9 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", default=str(ROOT / "cache" / "bench_diagnose"))
     args = ap.parse_args(argv)
 
-    from cosim.data import read_logs
-    from cosim.identify.diagnose import run
-    from cosim.identify.report import write_outputs
+    from cosim_plugins.raw_log import read_logs
+    from cosim_plugins.identify.diagnose import run
+    from cosim_plugins.identify.report import write_outputs
 
     files, record_s = make_logs(Path(args.cache))
     rows = sum(lg.n for lg in read_logs(files))

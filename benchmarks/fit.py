@@ -25,7 +25,7 @@ CHEAP = {"sindy-linear", "sindy-nonlinear"}
 
 
 def make_logs(root: Path, rows: int, seed: int) -> tuple[list[Path], float]:
-    from cosim.identify import synthetic as syn
+    from cosim_plugins.identify import synthetic as syn
     from cosim_plugins.models.physical import synthetic_plant
 
     out = root / f"rows{rows}_seed{seed}"
@@ -48,8 +48,8 @@ def main(argv=None) -> int:
     import pysindy  # noqa: F401  (imports excluded from the timings)
     import torch  # noqa: F401
 
-    from cosim.identify.dataset import Dataset
-    from cosim.identify.fit import make_model
+    from cosim_plugins.identify.dataset import Dataset
+    from cosim_plugins.identify.fit import make_model
 
     files, gen_s = make_logs(Path(args.cache), args.rows, args.seed)
     t0 = time.perf_counter()

@@ -22,8 +22,8 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from cosim.certs import make_certificates
-from cosim.runner import RunRequest, run
+from cosim.scale.certs import make_certificates
+from cosim.runtime.runner import RunRequest, run
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
 

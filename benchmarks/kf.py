@@ -62,7 +62,7 @@ def replay(kf, omega: np.ndarray, frames: np.ndarray) -> np.ndarray:
 
 
 def bench_model(kind: str, log, steps: int, q_logs: list[str], repeat: int) -> dict:
-    from cosim.plugins import lookup
+    from cosim.contract.plugins import lookup
 
     n = min(steps, log.n - 1)
     omega = np.nan_to_num(log.omega_hz[:n]) * 2 * np.pi  # rad/s, the bus unit
@@ -101,9 +101,9 @@ def bench_model(kind: str, log, steps: int, q_logs: list[str], repeat: int) -> d
 
 
 def main() -> None:
-    from cosim.data import read_log
-    from cosim.dataset import ensure_dataset
-    from cosim.identify.cache import quick_data
+    from cosim_plugins.raw_log import read_log
+    from cosim_plugins.paper.dataset import ensure_dataset
+    from cosim_plugins.identify.cache import quick_data
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated model kinds or files")

@@ -3,7 +3,7 @@
 Prints JSON: {"one_process": {"realtime_factor": median, "runs": [...],
 "cpu_steal_pct": ...}, "processes": {...}, "processes_os_placement": {...},
 "sim_s": ..., "budgets": {...}}. ``processes`` places the nodes as ``cosim run
---processes`` does by default (all on one CPU, see cosim.placement);
+--processes`` does by default (all on one CPU, see cosim.runtime.placement);
 ``processes_os_placement`` leaves that to the operating system
 (``--node-cpus none``), for comparison. The
 factor is simulated time over the wall time of the stepping loop (set-up and
@@ -22,7 +22,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from cosim.runner import RunRequest, run
+from cosim.runtime.runner import RunRequest, run
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.runner import RunRequest, run
+from cosim.runtime.runner import RunRequest, run
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "controllers_racetrack.yaml"
 

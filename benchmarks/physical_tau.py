@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-from cosim.identify.cache import resolve_model
+from cosim_plugins.identify.cache import resolve_model
 
 
 def scaled(model, s: float):

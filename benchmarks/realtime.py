@@ -17,7 +17,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from cosim.runner import RunRequest, run
+from cosim.runtime.runner import RunRequest, run
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
 BUDGETS = {"missed_pct_max": 0.1, "lateness_p99_ms_max": 2.0}

@@ -25,8 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from cosim.scenario import load_scenario, sweep_overrides
-from cosim.sweep import prepare_caches
+from cosim.scenario.schema import load_scenario, sweep_overrides
+from cosim.scale.sweep import prepare_caches
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "feedback_sweep.yaml"
 TIMINGS = ("solve_ms",)

@@ -1,11 +1,33 @@
-"""cosim: a lockstep co-simulation framework for data-driven control of a magnetic swimmer.
+"""cosim: a lockstep co-simulation framework over eclipse-zenoh.
 
-The framework knows components, time, wiring and data; the physics lives in the
-``cosim_plugins`` package and in users' plugins, registered through pluggy hooks
-(see :mod:`cosim.hookspecs`).
+The framework knows components, time, wiring, scenarios and recordings; a
+domain (a plant, its sensors, controllers and analyses) is a package of
+plugins registered through pluggy hooks (see :mod:`cosim.contract`). Its
+rooms: :mod:`cosim.contract` (what a plugin implements), :mod:`cosim.scenario`
+(what a run is), :mod:`cosim.runtime` (the path of a tick), :mod:`cosim.record`
+(what a run leaves behind), :mod:`cosim.scale` (many runs, many machines),
+:mod:`cosim.components` (components any domain can use) and :mod:`cosim.cli`.
+
+The names below are the public API a plugin imports; ``FmuComponent`` and
+``component_recording`` are loaded on first use (they bring fmpy and rerun).
 """
 
-from cosim.component import Component, ComponentError, ComponentFault, Port
-from cosim.hookspecs import hookimpl
+from cosim.contract.component import Component, ComponentError, ComponentFault, Port
+from cosim.contract.errors import UserError
+from cosim.contract.hookspecs import hookimpl, hookspec
+from cosim.contract.params import Param, read_params, whole_ticks
 
-__all__ = ["Component", "ComponentError", "ComponentFault", "Port", "hookimpl"]
+__all__ = ["Component", "ComponentError", "ComponentFault", "FmuComponent", "Param", "Port", "UserError",
+           "component_recording", "hookimpl", "hookspec", "read_params", "whole_ticks"]
+
+
+def __getattr__(name: str):
+    if name == "FmuComponent":
+        from cosim.components.fmu import FmuComponent
+
+        return FmuComponent
+    if name == "component_recording":
+        from cosim.record.rerun_log import component_recording
+
+        return component_recording
+    raise AttributeError(f"module 'cosim' has no attribute {name!r}")

@@ -7,8 +7,7 @@ Load it from a scenario with ``plugins: [ema_estimator.py]`` (see
 
 import numpy as np
 
-from cosim import Component, Port, hookimpl
-from cosim.params import Param, read_params
+from cosim import Component, Param, Port, hookimpl, read_params
 
 
 class EmaEstimator(Component):

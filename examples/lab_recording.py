@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.data import read_log
+from cosim_plugins.raw_log import read_log
 
 COMMAND_HZ = 25.0
 LOST = 0.05

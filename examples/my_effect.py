@@ -21,7 +21,7 @@ u = omega [Hz] as (n, 3) arrays and ``params`` the parameters by short name
 import numpy as np
 
 from cosim import hookimpl
-from cosim.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, Param
 
 TANK_HALF_MM = 75.0  # the tank is a 150 mm cube centred at the origin
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from cosim import plugins
+from cosim.contract import plugins
 
 
 @pytest.fixture

@@ -6,7 +6,7 @@ import json
 import re
 
 from cosim.cli import main
-from cosim.report_format import filled
+from cosim_plugins.paper.report_format import filled
 from figure_checks import assert_labelled
 
 

@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, Port
-from cosim.params import Param, read_params
+from cosim import Component, Param, Port, read_params
 
 PARAMS = {
     "kp_V_s_per_rad": Param(0.04, "proportional gain [V/(rad/s)]", 0.0),

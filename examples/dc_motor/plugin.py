@@ -1,4 +1,5 @@
-"""The DC motor example's plugin file: registers its components (a scenario loads it with ``plugins: [plugin.py]``).
+"""The DC motor example's plugin file: registers its components and its log (a scenario loads it
+with ``plugins: [plugin.py]``).
 
 A scenario's plugin file is imported on its own, not as part of a package,
 so this file first imports the folder beside it as the package
@@ -31,6 +32,7 @@ def _import_package():
 
 _import_package()
 from cosim_example_dc_motor.controller import SpeedPi  # noqa: E402
+from cosim_example_dc_motor.log import MotorLog  # noqa: E402
 from cosim_example_dc_motor.motor import MotorFmu  # noqa: E402
 from cosim_example_dc_motor.scope import Scope  # noqa: E402
 from cosim_example_dc_motor.steps import Steps  # noqa: E402
@@ -42,3 +44,8 @@ def cosim_register_components(register):
     register("dc_motor.pi_speed", SpeedPi)
     register("dc_motor.steps", Steps)
     register("dc_motor.scope", Scope)
+
+
+@hookimpl
+def cosim_register_views(register):
+    register("dc_motor.log", MotorLog())

@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim import Component, ComponentError, Port
-from cosim.params import Param, read_params
+from cosim import Component, ComponentError, Param, Port, read_params
 
 PARAMS = {
     "setpoint_rad_s": Param([], "speed setpoint profile: [[t_s, rad/s], ...]"),

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 import yaml
 
-from cosim.errors import UserError
+from cosim.contract.errors import UserError
 from cosim_plugins.camera.calibration import CameraModel
 
 WHITE_DN, DARK_DN, SURROUND_DN = 220, 30, 120

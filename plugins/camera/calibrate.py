@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from cosim.errors import UserError
+from cosim.contract.errors import UserError
 from cosim_plugins.camera.board import Target
 from cosim_plugins.camera.calibration import CameraModel
 

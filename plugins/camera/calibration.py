@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 import yaml
 
-from cosim.errors import UserError
+from cosim.contract.errors import UserError
 
 #: The views, in the order of every pair: the lab's top and side cameras (paper, Sec. III-A).
 VIEWS = ("top", "side")

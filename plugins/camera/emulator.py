@@ -15,7 +15,7 @@ from collections import deque
 import numpy as np
 
 from cosim import Component, ComponentError, Port
-from cosim.params import Param, read_params, whole_ticks
+from cosim.contract.params import Param, read_params, whole_ticks
 
 PARAMS = {
     "interval_s": Param(0.02, "time between captured frames [s], a multiple of dt", 0.0, 60.0),

@@ -32,7 +32,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from cosim import Component, ComponentError, Port
-from cosim.params import Param, read_params
+from cosim.contract.params import Param, read_params
 from cosim_plugins.camera.calibration import VIEWS, Calibration, load_calibration
 from cosim_plugins.camera.detect import BlobParams
 from cosim_plugins.camera.frame_video import FrameVideos

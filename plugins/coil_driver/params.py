@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from cosim import ComponentError
-from cosim.params import Param, read_params
+from cosim.contract.params import Param, read_params
 from cosim_plugins.coil_driver.backends import BACKENDS, uses
 from cosim_plugins.coil_driver.daq_backend import samples_per_tick
 from cosim_plugins.coil_driver.visa_backend import check_addresses

@@ -21,7 +21,7 @@ R = [1 1 1] on the command change, Ru = [1 1 1] on the command,
 bounds +-1 on u and Delta u, look-ahead 9 mm and gain 0.001.
 
 Model: ``model`` names a model file or kind (default the linear SINDy model,
-resolved with :func:`cosim.identify.cache.resolve_model`). A linear model
+resolved with :func:`cosim_plugins.identify.cache.resolve_model`). A linear model
 gives (A, B, c) through ``linear_matrices()``; any other is linearised once at
 set-up with ``jacobians()`` around hover: p = 0 (tank centre), v = 0,
 u = ``hover_hz`` (default 0). The scenario step must be a multiple of the
@@ -73,7 +73,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim import ComponentError
-from cosim.params import Param, read_params, whole_ticks
+from cosim.contract.params import Param, read_params, whole_ticks
 from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.mpc_qp import CondensedMPC, CvxpyMPC, MPCSpec, clip_first
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
@@ -187,7 +187,7 @@ class MPCController(PathController):
     @classmethod
     def prepare(cls, params):
         """Train the model now if it is named by kind and not cached yet."""
-        from cosim.identify.cache import resolve_model
+        from cosim_plugins.identify.cache import resolve_model
 
         p = check_params(params)
         resolve_model(str(p["model"]), profile=str(p["dataset"]))
@@ -214,8 +214,8 @@ class MPCController(PathController):
         self.last_plan: np.ndarray | None = None
 
     def _load_model(self, p):
-        from cosim.errors import UserError
-        from cosim.identify.cache import resolve_model
+        from cosim.contract.errors import UserError
+        from cosim_plugins.identify.cache import resolve_model
 
         try:
             model = resolve_model(str(p["model"]), profile=str(p["dataset"]))

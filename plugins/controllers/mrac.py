@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosim import ComponentError
-from cosim.params import Param, read_params
+from cosim.contract.params import Param, read_params
 from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 

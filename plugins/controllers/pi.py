@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from cosim.params import Param, read_params
+from cosim.contract.params import Param, read_params
 from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
 from cosim_plugins.vec3 import all_finite, norm

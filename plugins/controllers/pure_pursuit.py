@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.paths import Path
+from cosim.scenario.paths import Path
 from cosim_plugins.vec3 import norm
 
 WINDOW_BACK, WINDOW_AHEAD = 20, 200

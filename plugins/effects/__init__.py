@@ -1,6 +1,6 @@
 """The effect library: named physical effects the physical model can include.
 
-Each is a :class:`cosim.identify.effect.Effect` registered through the
+Each is a :class:`cosim_plugins.identify.effect.Effect` registered through the
 ``cosim_register_effects`` hook, exactly as a user's effect file does (see
 ``examples/my_effect.py``). Forms are generic (they must work on any lab's
 logs): each is documented with its physics, parameters and units.

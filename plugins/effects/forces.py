@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from cosim.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, Param
 
 #: Half the tank's edge [mm]: walls at +-75 mm on every axis.
 TANK_HALF_MM = 75.0

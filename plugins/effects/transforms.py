@@ -13,7 +13,7 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-from cosim.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, Param
 
 
 def first_order_lag(u: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:

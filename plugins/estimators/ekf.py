@@ -67,7 +67,7 @@ class MultiStepEKF:
     """EKF with multi-step prediction between frames; see the module docstring.
 
     Args:
-        model: a :class:`cosim.identify.model.Model` (``predict`` on (6,) and (n, 6) states).
+        model: a :class:`cosim_plugins.identify.model.Model` (``predict`` on (6,) and (n, 6) states).
         dt_s: control period [s].
         q: (n,) per-step process noise variances (n = 6, or 9 with drift).
         r: (3,) measurement noise variances [mm^2].

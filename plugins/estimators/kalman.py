@@ -66,8 +66,8 @@ from pathlib import Path
 import numpy as np
 
 from cosim import Component, ComponentError, Port
-from cosim.errors import UserError
-from cosim.params import Param, read_params, whole_ticks
+from cosim.contract.errors import UserError
+from cosim.contract.params import Param, read_params, whole_ticks
 from cosim_plugins.estimators import noise
 from cosim_plugins.estimators.ekf import MultiStepEKF
 from cosim_plugins.estimators.model_check import check_model_spec, model_files
@@ -147,8 +147,8 @@ class KalmanEstimator(Component):
         p = _read(params)
         _resolve(p["model"], p["dataset"])
         if not p["q_diag"] and not p["q_logs"]:
-            from cosim.dataset import ensure_dataset
-            from cosim.identify.cache import quick_data
+            from cosim_plugins.paper.dataset import ensure_dataset
+            from cosim_plugins.identify.cache import quick_data
 
             ensure_dataset(quick=quick_data(), profile=p["dataset"])
 
@@ -242,7 +242,7 @@ def _chi2_3dof(prob: float) -> float:
 
 
 def _resolve(spec: str, profile: str = "ideal"):
-    from cosim.identify.cache import resolve_model
+    from cosim_plugins.identify.cache import resolve_model
 
     try:
         return resolve_model(spec, profile=profile)
@@ -253,8 +253,8 @@ def _resolve(spec: str, profile: str = "ideal"):
 def _dataset(patterns: list[str], profile: str = "ideal"):
     """The raw logs named by ``patterns`` (default: the paper training logs on ``profile``), read once per
     process."""
-    from cosim.identify.cache import quick_data
-    from cosim.identify.dataset import Dataset
+    from cosim_plugins.identify.cache import quick_data
+    from cosim_plugins.identify.dataset import Dataset
 
     if patterns:
         files = []
@@ -264,7 +264,7 @@ def _dataset(patterns: list[str], profile: str = "ideal"):
                 raise ComponentError(f"q_logs: no log file matches {pattern!r}")
             files += hits
     else:
-        from cosim.dataset import ensure_dataset
+        from cosim_plugins.paper.dataset import ensure_dataset
 
         try:
             files = [str(f) for f in ensure_dataset(quick=quick_data(), profile=profile).training]

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim import ComponentError
-from cosim.errors import UserError
+from cosim.contract.errors import UserError
 
 STATE_DIM = 6
 INPUT_DIM = 3
@@ -23,7 +23,7 @@ INPUT_DIM = 3
 
 def check_model_spec(spec: str) -> None:
     """Raise :class:`ComponentError` with a clear message if ``spec`` cannot serve the estimator."""
-    from cosim.plugins import registry
+    from cosim.contract.plugins import registry
 
     kinds = registry("model")
     path = Path(spec)
@@ -33,7 +33,7 @@ def check_model_spec(spec: str) -> None:
                                  f"({', '.join(sorted(kinds))})")
         _check_sizes(kinds[spec], f"model kind {spec!r}", {})
         return
-    from cosim.identify.model import read_model_file
+    from cosim_plugins.identify.model import read_model_file
 
     try:
         header, _ = read_model_file(path)

@@ -155,8 +155,8 @@ def fit_process_noise(model, dataset, r_mm2: np.ndarray, dt_s: float, drift_tau_
     """Fit Q (and the drift's variance) to ``model``'s measured multi-step residuals on ``dataset``.
 
     Args:
-        model: a :class:`cosim.identify.model.Model`.
-        dataset: a :class:`cosim.identify.dataset.Dataset` (raw logs) at period ``dt_s`` [s].
+        model: a :class:`cosim_plugins.identify.model.Model`.
+        dataset: a :class:`cosim_plugins.identify.dataset.Dataset` (raw logs) at period ``dt_s`` [s].
         r_mm2: (3,) measurement noise variance of the logs [mm^2].
         drift_tau_s: correlation time of the drift state d [s] (None: no drift, 6 states).
         horizon: longest horizon fitted [steps].

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosim import Component, Port
-from cosim.params import read_params
+from cosim.contract.params import read_params
 
 
 class Passthrough(Component):

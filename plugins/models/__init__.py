@@ -2,7 +2,7 @@
 
 ``physical`` (Eq. 1-9), ``sindy-linear`` and ``sindy-nonlinear`` (SINDYc,
 polynomial order 1 and 2) and ``mlp`` (9-10-10-6). All follow
-:class:`cosim.identify.model.Model`.
+:class:`cosim_plugins.identify.model.Model`.
 """
 
 from cosim import hookimpl

@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
-from cosim.errors import UserError
-from cosim.identify.model import Model
+from cosim.contract.errors import UserError
+from cosim_plugins.identify.model import Model
 
 LAYERS = (9, 10, 10, 6)
 

@@ -11,7 +11,7 @@ c_hat = -p / |p|::
     F_vs = Fvs [0, 0, 1]                             Fvs  [uN]
     F_c  = Fmax sin(pi |p| / |P_b|) c_hat            Fmax [uN], P_b = [70, 70, 70] mm
 
-plus any extra :class:`~cosim.identify.terms.ForceTerm`. With alpha, v_perp
+plus any extra :class:`~cosim_plugins.identify.terms.ForceTerm`. With alpha, v_perp
 and c_hat taken from the data the force is linear in the six parameters.
 
 Integration (stable for any drag): over a step the drag is exact (exponential
@@ -50,10 +50,10 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from cosim.errors import UserError
-from cosim.identify.model import Model
-from cosim.identify.effect import effect_sources, restore_effects
-from cosim.identify.terms import ForceTerm, Param
+from cosim.contract.errors import UserError
+from cosim_plugins.identify.model import Model
+from cosim_plugins.identify.effect import effect_sources, restore_effects
+from cosim_plugins.identify.terms import ForceTerm, Param
 
 BASE_PARAMS = (  # scales: typical magnitudes for a mm-sized swimmer (tau_v ~ 0.03-0.5 s, 1-5 mm/s per Hz)
     Param("k", 0.1, unit="uN/Hz", scale=0.1),
@@ -470,14 +470,14 @@ def _step_scalar(x, u, h, th, s, pb):
 
 
 def synthetic_plant(richer: bool = True) -> PhysicalModel:
-    """The plant of :mod:`cosim.identify.synthetic` logs (tests, benchmarks, demos).
+    """The plant of :mod:`cosim_plugins.identify.synthetic` logs (tests, benchmarks, demos).
 
-    The paper's model with :data:`~cosim.identify.synthetic.TRUE_PARAMS`; if
+    The paper's model with :data:`~cosim_plugins.identify.synthetic.TRUE_PARAMS`; if
     ``richer``, plus quadratic drag (c = 0.0015 uN s^2/mm^2) and 4 substeps
     per period, so no fitted model is exactly right.
     """
-    from cosim.identify.synthetic import TRUE_PARAMS
-    from cosim.identify.terms import quadratic_drag
+    from cosim_plugins.identify.synthetic import TRUE_PARAMS
+    from cosim_plugins.identify.terms import quadratic_drag
 
     if richer:
         return PhysicalModel.from_params({**TRUE_PARAMS, "quadratic_drag.c": 0.0015}, substeps=4,

@@ -22,8 +22,8 @@ import warnings
 
 import numpy as np
 
-from cosim.errors import UserError
-from cosim.identify.model import Model
+from cosim.contract.errors import UserError
+from cosim_plugins.identify.model import Model
 
 STATE_NAMES = ["px", "py", "pz", "vx", "vy", "vz"]
 INPUT_NAMES = ["wx", "wy", "wz"]

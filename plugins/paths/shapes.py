@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.paths import SPACING_M, Path, resample, rotation_y
+from cosim.scenario.paths import SPACING_M, Path, resample, rotation_y
 
 _MM = 1e-3
 

@@ -21,7 +21,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from cosim.errors import UserError
+from cosim.contract.errors import UserError
 
 MODEL_IDENTIFIER = "swimmer_plant"
 REPO_ROOT = Path(__file__).resolve().parents[2]

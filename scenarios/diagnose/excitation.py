@@ -13,7 +13,7 @@ Load it from a scenario with ``plugins: [excitation.py]`` and record
 import numpy as np
 
 from cosim import Component, Port, hookimpl
-from cosim.params import Param, read_params
+from cosim.contract.params import Param, read_params
 
 PARAMS = {
     "f_low_hz": Param(5.0, "lowest scheduled spin frequency [Hz]", 0.0, 100.0),

@@ -42,7 +42,7 @@ def test_rendered_frames_close_the_loop_as_well_as_the_emulator(tmp_path):
     assert not list((tmp_path / "frames").glob("recording.*.rrd"))
     entities = recorded_entities(tmp_path / "frames" / "recording.rrd")
     assert {"/camera/top/image", "/camera/side/image", "/camera/top/blobs", "/camera/side/found",
-            "/world/swimmer/measured"} <= entities, entities
+            "/world/measured"} <= entities, entities
 
 
 def test_frames_a_node_recorded_replay_the_run_exactly(tmp_path):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.runner import RunRequest, run
+from cosim.runtime.runner import RunRequest, run
 
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from cosim import ComponentError
-from cosim.identify.model import Model
-from cosim.paths import make_path
+from cosim_plugins.identify.model import Model
+from cosim.scenario.paths import make_path
 from cosim_plugins.controllers.mpc import MPCController, model_matrices
 from test_controllers_mpc_qp import swimmer_like
 

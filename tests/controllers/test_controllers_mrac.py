@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cosim import ComponentError
-from cosim.paths import make_path
+from cosim.scenario.paths import make_path
 from cosim_plugins.controllers.mrac import PARAMS, MRACController
 
 DT = 0.02

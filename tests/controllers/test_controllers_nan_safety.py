@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import plugins
-from cosim.data import read_log
-from cosim.runner import RunRequest, run
-from cosim.scheduler import RunError
+from cosim.contract import plugins
+from cosim_plugins.raw_log import read_log
+from cosim.runtime.runner import RunRequest, run
+from cosim.runtime.scheduler import RunError
 
 SCENARIO = Path(__file__).parent / "data" / "nan_racetrack.yaml"
 NAN_AT_S, DT = 1.0, 0.02

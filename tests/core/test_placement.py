@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from cosim.cli import main
-from cosim.errors import UserError
-from cosim.placement import node_cpus, parse_cpu_list
+from cosim.contract.errors import UserError
+from cosim.runtime.placement import node_cpus, parse_cpu_list
 
 REPO = Path(__file__).parents[2]
 linux_only = pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="CPU affinity is Linux-only")
@@ -38,7 +38,7 @@ def test_pinning_moves_every_thread_and_later_ones_under_sched_batch():
     cpu = max(os.sched_getaffinity(0))
     probe = (
         "import os, threading\n"
-        "from cosim.placement import pin_this_process\n"
+        "from cosim.runtime.placement import pin_this_process\n"
         "ev = threading.Event(); seen = {}\n"
         "def early():\n"
         "    ev.wait(); seen['early'] = (os.sched_getaffinity(0), os.sched_getscheduler(0))\n"

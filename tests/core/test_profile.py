@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.scenario import ScenarioError, load_scenario, sweep_overrides
-from cosim.summary import largest_below, monotonic_within_spread, pool_replicates
+from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
+from cosim.record.summary import largest_below, monotonic_within_spread, pool_replicates
 from cosim_plugins.profiles import LAB
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
@@ -85,8 +85,8 @@ def test_lab_scenarios_train_their_models_on_the_lab_dataset():
 
 
 def test_the_dataset_cache_key_includes_the_profile(monkeypatch, tmp_path):
-    from cosim import dataset
-    from cosim.errors import UserError
+    from cosim_plugins.paper import dataset
+    from cosim.contract.errors import UserError
 
     monkeypatch.setenv("COSIM_CACHE", str(tmp_path))
     assert dataset.dataset_folder(True) == tmp_path / "paper_dataset_quick"

@@ -8,7 +8,7 @@ import textwrap
 import pytest
 
 from cosim.cli import main
-from cosim.scenario import ScenarioError, load_scenario, sweep_overrides
+from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
 
 GOOD = textwrap.dedent("""\
     name: t

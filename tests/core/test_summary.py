@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.summary import detection_error_m, largest_below, sweep_plot, sweep_table
+from cosim.record.summary import detection_error_m, largest_below, sweep_plot, sweep_table
 from figure_checks import assert_labelled
 
 

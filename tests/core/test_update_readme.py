@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 
-from cosim.reproduce import README_END, README_START, update_readme
+from cosim_plugins.paper.reproduce import README_END, README_START, update_readme
 
 
 def test_plots_sharing_a_name_get_their_own_assets(tmp_path):

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim import plugins
+from cosim.contract import plugins
 
 from plant_variants import VARIANTS, record_and_diagnose
 

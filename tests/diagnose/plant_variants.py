@@ -22,8 +22,8 @@ VARIANTS = {
 def record_and_diagnose(job):
     """(variant, log paths, diagnosis result) of one variant: its four logs recorded into ``root``."""
     variant, root = job
-    from cosim.identify.diagnose import Settings, run as diagnose
-    from cosim.runner import RunRequest, run
+    from cosim_plugins.identify.diagnose import Settings, run as diagnose
+    from cosim.runtime.runner import RunRequest, run
 
     out = Path(root) / variant
     run(RunRequest(SCENARIO, out, [f"duration_s={DURATION_S}", *VARIANTS[variant]], progress=False))

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim import plugins
-from cosim.identify.diagnose import Settings, run
+from cosim.contract import plugins
+from cosim_plugins.identify.diagnose import Settings, run
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))

@@ -57,7 +57,7 @@ def test_cli_add_shows_error_before_and_after_at_every_horizon(flow_diagnosis):
 
 
 def test_validate_logs_are_the_held_out_data(plant_logs, tmp_path):
-    from cosim.identify.diagnose import Settings, run
+    from cosim_plugins.identify.diagnose import Settings, run
 
     logs = plant_logs("background_flow")
     r = run(logs[:3], logs[3:], Settings(candidates=["background_flow", "quadratic_drag"])).result
@@ -69,7 +69,7 @@ def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagno
     """The README's walkthrough in quick form: the plant drifts at 3 mm/s; with 1.5 s between camera frames the
     filter on the model diagnose saved (with the flow) predicts each frame and tracks better than on the plain model
     `cosim fit` makes (40 s runs)."""
-    from cosim.identify.model import load_model
+    from cosim_plugins.identify.model import load_model
 
     _, printed, with_flow, _ = flow_diagnosis
     assert f"components.estimator.params.model={with_flow}" in printed

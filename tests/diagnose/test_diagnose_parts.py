@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.identify import synthetic as syn
-from cosim.identify.dataset import Dataset
-from cosim.identify.effect import check_effect, known_effects
-from cosim.identify.joint import JointModel
-from cosim.identify.diagnose import velocity_time_constant
-from cosim.identify.noise import noise_floor, noise_sigma_mm
-from cosim.identify.timeline import Timeline
-from cosim.plugins import lookup
+from cosim_plugins.identify import synthetic as syn
+from cosim_plugins.identify.dataset import Dataset
+from cosim_plugins.identify.effect import check_effect, known_effects
+from cosim_plugins.identify.joint import JointModel
+from cosim_plugins.identify.diagnose import velocity_time_constant
+from cosim_plugins.identify.noise import noise_floor, noise_sigma_mm
+from cosim_plugins.identify.timeline import Timeline
+from cosim.contract.plugins import lookup
 
 LIBRARY = {"background_flow", "wall_drag", "step_out", "actuation_lag", "gradient_force", "anisotropic_drag",
            "quadratic_drag", "sensor_latency"}
@@ -68,7 +68,7 @@ def test_transforms():
 
 
 def test_saved_model_with_a_library_term_loads(tmp_path):
-    from cosim.identify.model import load_model
+    from cosim_plugins.identify.model import load_model
     from cosim_plugins.models.physical import synthetic_plant
 
     model = synthetic_plant()
@@ -113,7 +113,7 @@ def test_noise_estimate_and_floor_of_a_perfect_model(synthetic):
 
 
 def test_time_block_split_keeps_halves_apart():
-    from cosim.identify.diagnose import BLOCK_S, split_logs
+    from cosim_plugins.identify.diagnose import BLOCK_S, split_logs
 
 
     from dataclasses import dataclass
@@ -134,7 +134,7 @@ def test_time_block_split_keeps_halves_apart():
 def test_a_latency_reads_the_path_before_each_window(synthetic):
     """Positions seen 2.5 steps late: with the true delay the rollouts start early enough that the model
     reproduces them (no extrapolation before a window's first row)."""
-    from cosim.identify.effect import known_effects
+    from cosim_plugins.identify.effect import known_effects
 
     ds, plant = synthetic
     tl = Timeline.from_dataset(ds)
@@ -156,7 +156,7 @@ def test_a_latency_reads_the_path_before_each_window(synthetic):
 
 
 def test_verdict_says_when_the_runner_up_explains_the_error_about_as_well():
-    from cosim.identify.verdict import verdict
+    from cosim_plugins.identify.verdict import verdict
 
     def result(t_between):
         entry = {"effect": "actuation_lag", "reduction": 0.36, "t_stat": 6.0, "rollout_mm": {"1.0": 0.64},
@@ -178,8 +178,8 @@ def test_verdict_says_when_the_runner_up_explains_the_error_about_as_well():
 def test_a_diverging_model_shows_a_huge_error_not_nan(synthetic):
     """A force that feeds the velocity (+c v, c m / dt >> 1) blows the rollouts up: each valid window's error
     is DIVERGED_MM, so means and rankings stay numbers."""
-    from cosim.identify.joint import DIVERGED_MM
-    from cosim.identify.terms import ForceTerm, Param
+    from cosim_plugins.identify.joint import DIVERGED_MM
+    from cosim_plugins.identify.terms import ForceTerm, Param
 
     ds, plant = synthetic
     tl = Timeline.from_dataset(ds)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.identify.diagnose import Settings, run
+from cosim_plugins.identify.diagnose import Settings, run
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(__file__).parent / "data"
@@ -26,10 +26,10 @@ def test_example_effect_file_explains_the_plant_wall_drag(plant_logs, fresh_plug
 @pytest.fixture(scope="module")
 def swirl_logs(tmp_path_factory):
     """Synthetic logs (the paper's model as the plant) with water turning about z at 0.12 rad/s."""
-    from cosim import plugins
-    from cosim.identify import synthetic as syn
-    from cosim.identify.effect import load_effect_files, resolve
-    from cosim.plugins import lookup
+    from cosim.contract import plugins
+    from cosim_plugins.identify import synthetic as syn
+    from cosim_plugins.identify.effect import load_effect_files, resolve
+    from cosim.contract.plugins import lookup
 
     plugins.reset()
     load_effect_files([DATA / "swirl_effect.py"])

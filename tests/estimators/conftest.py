@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim import plugins
+from cosim.contract import plugins
 
 HERE = Path(__file__).resolve().parent
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosim import hookimpl
-from cosim.identify.model import Model
+from cosim_plugins.identify.model import Model
 
 DT = 0.02
 

@@ -10,8 +10,8 @@ import pytest
 
 from cosim import ComponentError
 from cosim.cli import main
-from cosim.identify.model import load_model
-from cosim.plugins import lookup
+from cosim_plugins.identify.model import load_model
+from cosim.contract.plugins import lookup
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "feedback_sweep.yaml"
 Q_DIAG = [1e-3, 1e-3, 1e-3, 4.0, 4.0, 4.0]
@@ -94,7 +94,7 @@ def _validate(capsys, model):
 
 
 def test_validate_accepts_kinds_and_good_files_without_training(linear_file, capsys, monkeypatch):
-    import cosim.identify.cache as cache
+    import cosim_plugins.identify.cache as cache
 
     monkeypatch.setattr(cache, "ensure_model", lambda *a, **k: pytest.fail("validate must not train"))
     assert _validate(capsys, "sindy-linear")[0] == 0

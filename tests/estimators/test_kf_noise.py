@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.data import write_log
-from cosim.identify.dataset import Dataset
+from cosim_plugins.raw_log import write_log
+from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.estimators.ekf import MultiStepEKF
 from cosim_plugins.estimators.noise import camera_variance, fit_process_noise
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from cosim.runner import RunRequest, run
+from cosim.runtime.runner import RunRequest, run
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "feedback_sweep.yaml"
 

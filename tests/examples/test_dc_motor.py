@@ -11,7 +11,7 @@ import pytest
 import yaml
 from scipy.linalg import expm
 
-from cosim import plugins
+from cosim.contract import plugins
 from cosim.cli import main
 from recording_checks import recorded_entities
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from cosim.identify import synthetic as syn
+from cosim_plugins.identify import synthetic as syn
 
 BIAS_HZ = (0.0, 0.0, 2.4)  # steering offset that holds the synthetic swimmer's weight
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.data import read_log
+from cosim_plugins.raw_log import read_log
 
 
 def _write(path, header, rows):

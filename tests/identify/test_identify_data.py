@@ -1,12 +1,12 @@
-"""The raw log reader and writer (cosim.data)."""
+"""The raw log reader and writer (cosim_plugins.raw_log)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from cosim.data import HEADER, read_log, write_log
-from cosim.errors import UserError
+from cosim_plugins.raw_log import HEADER, read_log, write_log
+from cosim.contract.errors import UserError
 
 
 def _rows(n=10, p_scale=1e-3):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from cosim.identify import synthetic as syn
-from cosim.identify.dataset import Dataset
+from cosim_plugins.identify import synthetic as syn
+from cosim_plugins.identify.dataset import Dataset
 
 BIAS_HZ = (0.0, 0.0, 2.4)  # steering offset that holds the synthetic swimmer's weight
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.errors import UserError
-from cosim.identify.model import load_model
-from cosim.plugins import registry
+from cosim.contract.errors import UserError
+from cosim_plugins.identify.model import load_model
+from cosim.contract.plugins import registry
 from cosim_plugins.models.mlp import MLPModel
 from cosim_plugins.models.physical import PhysicalModel
 from cosim_plugins.models.sindy import SindyLinear, SindyNonlinear
@@ -55,8 +55,8 @@ def test_a_model_with_an_effect_from_a_users_file_opens_without_that_file(tmp_pa
     import shutil
     from pathlib import Path
 
-    from cosim import plugins
-    from cosim.identify.effect import load_effect_files, resolve
+    from cosim.contract import plugins
+    from cosim_plugins.identify.effect import load_effect_files, resolve
 
     src = tmp_path / "swirl_effect.py"
     shutil.copy(Path(__file__).parents[1] / "diagnose" / "data" / "swirl_effect.py", src)

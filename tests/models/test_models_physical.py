@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from cosim.errors import UserError
-from cosim.identify import synthetic as syn
-from cosim.identify.model import load_model
-from cosim.identify.terms import ForceTerm, Param, quadratic_drag
+from cosim.contract.errors import UserError
+from cosim_plugins.identify import synthetic as syn
+from cosim_plugins.identify.model import load_model
+from cosim_plugins.identify.terms import ForceTerm, Param, quadratic_drag
 from cosim_plugins.models.physical import PhysicalModel, forces, synthetic_plant
 
 

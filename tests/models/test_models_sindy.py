@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.identify.dataset import Dataset
+from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.models.sindy import SindyLinear, SindyNonlinear
 
 

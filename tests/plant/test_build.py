@@ -8,7 +8,7 @@ import zipfile
 
 import pytest
 
-from cosim.errors import UserError
+from cosim.contract.errors import UserError
 from cosim_plugins.plant import build
 
 

@@ -9,8 +9,8 @@ import pluggy
 import pytest
 
 import cosim_plugins.plant as plant_plugin
-from cosim import hookspecs
-from cosim.component import Component, ComponentError
+from cosim.contract import hookspecs
+from cosim.contract.component import Component, ComponentError
 from cosim_plugins.plant.fmu_component import FmuPlant
 
 

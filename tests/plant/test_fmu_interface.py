@@ -12,7 +12,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.validation import validate_fmu
 
-from cosim.component import ComponentError
+from cosim.contract.component import ComponentError
 from cosim_plugins.plant.fmu_component import FmuPlant
 
 INPUTS = [f"V_amp_{i}" for i in range(1, 7)] + [f"V_phase_{i}" for i in range(1, 7)] + ["freq"]

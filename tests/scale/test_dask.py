@@ -40,9 +40,9 @@ def test_a_run_that_kills_its_dask_worker_is_one_failed_row(tmp_path):
 
 
 def test_an_unreachable_dask_scheduler_is_named(tmp_path, capsys, monkeypatch):
-    import cosim.executors
+    import cosim.scale.executors
 
-    monkeypatch.setattr(cosim.executors, "DASK_CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(cosim.scale.executors, "DASK_CONNECT_TIMEOUT_S", 1.0)
     sweep = sweep_arg({"components.camera.params.interval_s": [0.02, 0.04]})
     assert main(["run", str(TOY), "--out", str(tmp_path), "--set", sweep, "--executor", "dask://127.0.0.1:9"]) == 2
     err = capsys.readouterr().err

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from cosim.cli import main
-from cosim.runner import RunRequest, run
+from cosim.runtime.runner import RunRequest, run
 
 from sweep_checks import TOY
 

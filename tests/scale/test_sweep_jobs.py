@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim.executors import cpu_groups
+from cosim.scale.executors import cpu_groups
 
 from sweep_checks import FAULTY, TOY, logs_of, rows_of, stop_a_parallel_sweep, sweep_arg, without_timings
 
@@ -68,9 +68,9 @@ def test_a_run_past_the_run_timeout_is_stopped_and_failed(tmp_path):
 
 
 def test_a_run_that_ignores_the_timeout_has_its_process_killed(tmp_path, monkeypatch):
-    import cosim.sweep
+    import cosim.scale.sweep
 
-    monkeypatch.setattr(cosim.sweep, "GIVE_UP_GRACE_S", 1.0)
+    monkeypatch.setattr(cosim.scale.sweep, "GIVE_UP_GRACE_S", 1.0)
     sweep = sweep_arg({"case": [{"label": "stuck", "components.relay.params.mode": "hang",
                                  "components.relay.timeout_s": 600},
                                 {"label": "ok", "components.relay.params.fail_at_s": 100}]})

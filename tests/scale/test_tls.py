@@ -7,8 +7,8 @@ import socket
 import time
 from pathlib import Path
 
-from cosim import bus
-from cosim.bus import TlsFiles
+from cosim.runtime import bus
+from cosim.runtime.bus import TlsFiles
 from cosim.cli import main
 
 KEY = "cosim/run1/coil_driver/coil_voltage_amp"

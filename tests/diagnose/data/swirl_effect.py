@@ -9,7 +9,7 @@ the force is +Cd1 w. No library effect has this curl-type field
 import numpy as np
 
 from cosim import hookimpl
-from cosim.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, Param
 
 
 def swirl_force(p, v, u, params):

@@ -1,0 +1,252 @@
+"""The framework's commands: run, validate, schema, plugins, replay, node, certs."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from cosim.contract.errors import UserError
+
+
+def add_commands(sub) -> None:
+    p = sub.add_parser("run", help="run a scenario (or its sweep) and record it")
+    p.add_argument("scenario", type=Path, help="scenario YAML file")
+    p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario field by dotted path, e.g. components.camera.params.interval_s=0.1")
+    p.add_argument("--processes", action="store_true",
+                   help="run every component as its own `cosim node` process over zenoh TCP on loopback")
+    p.add_argument("--node-cpus", default=None, metavar="auto|none|LIST",
+                   help="with --processes: CPUs for the nodes (auto: all on one CPU, the fastest "
+                        "placement for a lockstep chain; none: the OS places them; or e.g. 1 or 0,2-3)")
+    p.add_argument("--realtime", nargs="?", type=float, const=1.0, default=None, metavar="FACTOR",
+                   help="pace the ticks on the wall clock (FACTOR times real time, default 1); late ticks "
+                        "are skipped and counted in summary.json's 'realtime'")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary lines (errors only)")
+    p.add_argument("--hosts", type=Path, default=None, metavar="HOSTS.yaml",
+                   help="with --processes: place the nodes on machines (host, endpoint, CPUs per component; "
+                        "launched over ssh or printed to start by hand; mutual TLS between machines)")
+    add_jobs_argument(p, "a sweep's runs at a time, each in a worker process")
+    p.add_argument("--executor", default=None, metavar="local|dask|dask://HOST:PORT",
+                   help="where a sweep's runs execute: local worker processes (default), a local Dask "
+                        "cluster of --jobs workers, or the Dask scheduler at HOST:PORT (needs the cluster extra)")
+    p.add_argument("--run-timeout", type=float, default=None, metavar="S",
+                   help="a sweep's run still going after S seconds of wall time is stopped and counted failed")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("validate", help="check a scenario and print its wiring as a table")
+    p.add_argument("scenario", type=Path)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
+    p.set_defaults(func=cmd_schema)
+
+    p = sub.add_parser("plugins", help="list registered components, paths, models and effects")
+    p.set_defaults(func=cmd_plugins)
+
+    p = sub.add_parser("replay", help="open a run's recording in the rerun viewer (--web: in a browser)")
+    p.add_argument("run_dir", type=Path, help="a run's output folder (or an .rrd file)")
+    p.add_argument("--web", action="store_true",
+                   help="serve rerun's web viewer instead of opening a window (no display needed; open the "
+                        "address it prints in a browser, through an SSH tunnel from another machine)")
+    p.add_argument("--port", type=int, default=9090, help="the web viewer's HTTP port with --web (default 9090)")
+    p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
+    p.add_argument("component", help="component name in the scenario")
+    p.add_argument("scenario", type=Path)
+    p.add_argument("--run-id", required=True)
+    p.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
+                   help="zenoh endpoint of the scheduler, e.g. tcp/127.0.0.1:7447, and (repeated) of "
+                        "every node started before this one")
+    p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                   help="endpoint the nodes started after this one connect to, e.g. tcp/0.0.0.0:7448")
+    p.add_argument("--cpus", default=None, metavar="LIST",
+                   help="run on these CPUs (e.g. 1 or 0,2-3) under SCHED_BATCH (see cosim.runtime.placement)")
+    p.add_argument("--run-dir", type=Path, default=None, metavar="DIR",
+                   help="the run's output folder, for a component that writes files of its own")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--fingerprint", default=None, metavar="SCENARIO.CODE.ARTIFACTS",
+                   help="the run's fingerprint: refuse to join (exit status 2) when this node's differs")
+    p.add_argument("--tls-ca", type=Path, default=None, metavar="PEM", help="the run's CA certificate (mutual TLS)")
+    p.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this host's certificate")
+    p.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this host's private key")
+    p.set_defaults(func=cmd_node)
+
+    p = sub.add_parser("certs", help="make a run's CA and one certificate per host of a HOSTS.yaml (mutual TLS)")
+    p.add_argument("hosts", type=Path, help="the hosts file; the files go where its tls.ca and hosts.*.cert/key say")
+    p.add_argument("--days", type=int, default=365, help="validity of the certificates (default 365)")
+    p.add_argument("--force", action="store_true", help="replace existing files")
+    p.set_defaults(func=cmd_certs)
+
+
+
+def cmd_run(args) -> int:
+    from cosim.runtime.runner import RunRequest, run
+    from cosim.scenario.schema import load_scenario
+
+    out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
+    if args.realtime is not None and not args.realtime > 0:
+        raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
+    if args.node_cpus is not None and not args.processes:
+        raise UserError(f"--node-cpus {args.node_cpus}: only applies with --processes (the nodes' CPUs)")
+    jobs = parse_jobs(args.jobs, default=1 if args.executor in (None, "local") else "auto")
+    if jobs > 1 and args.processes and args.node_cpus not in (None, "auto", "none"):
+        raise UserError(f"--node-cpus {args.node_cpus} with --jobs {args.jobs}: every parallel run's nodes would "
+                        "share these CPUs; use auto (each run's nodes on CPUs of their own) or none")
+    if args.hosts is not None and not args.processes:
+        raise UserError(f"--hosts {args.hosts}: only applies with --processes (it places the nodes)")
+    if args.hosts is not None and (jobs > 1 or args.executor):
+        raise UserError(f"--hosts {args.hosts}: a run over machines takes the endpoints its hosts file names, "
+                        "so its sweep runs one at a time (no --jobs, no --executor)")
+    if args.run_timeout is not None and not args.run_timeout > 0:
+        raise UserError(f"--run-timeout {args.run_timeout:g}: the time must be > 0 [s]")
+    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
+                             args.node_cpus or "auto", args.realtime, jobs=jobs, executor=args.executor,
+                             run_timeout_s=args.run_timeout, hosts=args.hosts))
+    if not args.quiet:
+        _print_run(summary, out)
+    if summary.get("status") == "interrupted":
+        print(f"cosim run: {summary.get('error') or 'stopped'}; everything recorded until then is kept",
+              file=sys.stderr)
+        return 130
+    failed = [row for row in summary.get("sweep", []) if row["status"] != "ok"]
+    if failed:
+        print(f"cosim run: {len(failed)} of {len(summary['sweep'])} sweep runs did not finish: "
+              + ", ".join(f"{row['dir']} ({row['status']})" for row in failed), file=sys.stderr)
+    return 1 if failed else 0
+
+
+def add_jobs_argument(parser, what: str) -> None:
+    parser.add_argument("--jobs", default=None, metavar="N|auto",
+                        help=f"{what} (auto: one per CPU this process may use; default 1)")
+
+
+def parse_jobs(text: str | None, default: int | str = 1) -> int:
+    """``--jobs``: a whole number >= 1, or ``auto`` (the CPUs this process may use)."""
+    text = str(default) if text is None else text
+    if text == "auto":
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if not text.isdigit() or int(text) < 1:
+        raise UserError(f"--jobs {text}: expected a whole number >= 1 or auto")
+    return int(text)
+
+
+def _print_run(summary: dict, out: Path) -> None:
+    if "sweep" not in summary:
+        err = summary["tracking_error_mm"]
+        if err:
+            print(f"tracking error: {err['mean']:.2f} ± {err['std']:.2f} mm (max {err['max']:.2f} mm)")
+        print(f"{summary['steps']} steps, {summary['sim_time_s']:.1f} s simulated in "
+              f"{summary['wall_time_s']:.1f} s ({summary['realtime_factor'] or 0:.0f}x real time)")
+        rt = summary.get("realtime")
+        if rt:
+            print(f"real-time pacing x{rt['factor']:g}: {rt['missed']} of {rt['ticks'] + rt['missed']} ticks "
+                  f"missed, lateness p99 {rt['lateness_ms']['p99']} ms (max {rt['lateness_ms']['max']} ms)")
+    print(f"recording: {out / 'recording.rrd' if 'sweep' not in summary else out / 'runs'}")
+    print(f"summary:   {out / 'summary.json'}")
+
+
+def cmd_validate(args) -> int:
+    from cosim.scenario.schema import load_scenario
+    from cosim.runtime.wiring import build_wiring, connection_table
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    print(connection_table(scenario, build_wiring(scenario)))
+    if scenario.sweep:
+        from cosim.scenario.schema import sweep_overrides
+
+        print(f"sweep: {len(sweep_overrides(scenario))} runs over {', '.join(scenario.sweep)}")
+    return 0
+
+
+def cmd_schema(args) -> int:
+    from cosim.scenario.schema import json_schema
+
+    print(json.dumps(json_schema(), indent=2))
+    return 0
+
+
+def cmd_plugins(args) -> int:
+    from cosim.contract.plugins import kinds, registry
+
+    for kind in kinds():
+        entries = registry(kind)
+        print(f"{kind}s:")
+        for name, obj in sorted(entries.items()):
+            doc = " ".join((getattr(obj, "doc", None) or getattr(obj, "__doc__", None) or "").split())
+            first = re.split(r"\.\s+(?=[A-Z])", doc, maxsplit=1)[0].rstrip(".") + "." if doc else ""
+            print(textwrap.fill(first, width=110, initial_indent=f"  {name:24s} ", subsequent_indent=" " * 27))
+    return 0
+
+
+def cmd_replay(args) -> int:
+    rrd = args.run_dir / "recording.rrd" if args.run_dir.is_dir() else args.run_dir
+    if not rrd.is_file():
+        raise UserError(f"no recording at {rrd}")
+    # the parts components recorded themselves (recording.<component>.rrd): one recording in the viewer
+    parts = sorted(args.run_dir.glob("recording.*.rrd")) if args.run_dir.is_dir() else []
+    files = [str(rrd), *map(str, parts)]
+    viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    if not Path(viewer).exists():
+        raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
+    if args.web:
+        print(f"serving {rrd} in rerun's web viewer on port {args.port}: open the http address below in a "
+              "browser (Ctrl-C stops)", flush=True)
+        return _call_viewer([viewer, "--serve-web", "--web-viewer-port", str(args.port), *files])
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UserError(f"no display to open the viewer on ($DISPLAY and $WAYLAND_DISPLAY are unset): "
+                        f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
+                        f"`rerun rrd stats {rrd}` lists what the recording holds")
+    print(f"opening {', '.join(files)} in the rerun viewer")
+    return _call_viewer([viewer, *files])
+
+
+def _call_viewer(command: list[str]) -> int:
+    """Run the viewer until it ends; Ctrl-C ends it (and is not an error)."""
+    try:
+        return subprocess.call(command)
+    except KeyboardInterrupt:
+        return 0
+
+
+def cmd_node(args) -> int:
+    from cosim.runtime.bus import TlsFiles
+    from cosim.runtime.fingerprint import Fingerprint
+    from cosim.runtime.node import serve
+    from cosim.scenario.schema import load_scenario
+    from cosim.runtime.wiring import build_wiring
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    if args.component not in scenario.components:
+        raise UserError(f"no component {args.component!r} in {args.scenario} "
+                        f"(have: {', '.join(scenario.components)})")
+    tls_args = (args.tls_ca, args.tls_cert, args.tls_key)
+    if any(tls_args) and not all(tls_args):
+        raise UserError("--tls-ca, --tls-cert and --tls-key go together (mutual TLS needs all three)")
+    try:
+        expected = Fingerprint.decode(args.fingerprint) if args.fingerprint else None
+    except ValueError as exc:
+        raise UserError(f"--fingerprint: {exc}") from None
+    return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen,
+                 args.cpus, args.run_dir, expected, TlsFiles(*tls_args) if all(tls_args) else None,
+                 args.scenario)
+
+
+def cmd_certs(args) -> int:
+    from cosim.scale.certs import make_certificates
+
+    if args.days < 1:
+        raise UserError(f"--days {args.days}: expected a whole number >= 1")
+    files = make_certificates(args.hosts, args.days, args.force)
+    print("wrote " + ", ".join(map(str, files)))
+    print(f"copy to each host its own .pem and .key and the CA certificate {files[0]}; keep the CA's key "
+          f"{files[1]} on none of them (it signs certificates that admit a peer to the run)")
+    return 0

@@ -1,0 +1,66 @@
+"""The ``cosim`` command.
+
+The framework's commands are in :mod:`cosim.cli.commands`, whose
+``add_commands(subparsers)`` adds their subparsers and sets ``func`` to a
+callable taking the parsed arguments and returning an exit code. Plugins add
+theirs the same way through the ``cosim_register_commands`` hook (a domain's
+analyses, e.g. ``cosim diagnose``, ``cosim camera``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from cosim.cli import commands
+from cosim.contract.plugins import command_groups
+
+
+class CLIError(Exception):
+    """An error to print as one line and exit with status 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="cosim",
+        description="Lockstep co-simulation over zenoh: run, sweep, record and replay scenarios; "
+                    "the installed domains add their own commands.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    commands.add_commands(sub)
+    for add_commands in command_groups():
+        add_commands(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        parser = build_parser()
+    except Exception as exc:  # a plugin that fails to load or register its commands
+        if _is_user_error(exc):
+            print(f"cosim: error: {exc}", file=sys.stderr)
+            return 2
+        raise
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("cosim: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # one clear line for expected errors, see below
+        if _is_user_error(exc):
+            print(f"cosim {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+        raise
+
+
+def _is_user_error(exc: Exception) -> bool:
+    """Errors caused by input (files, scenarios, plugins) print one line, not a traceback."""
+    from cosim.contract.errors import UserError
+
+    return isinstance(exc, (CLIError, UserError, FileNotFoundError))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

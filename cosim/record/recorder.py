@@ -1,0 +1,175 @@
+"""Observers that record a run, and the files they write as it goes.
+
+:class:`TraceRecorder` keeps every port's value at every tick in memory
+(preallocated arrays, for the run's figures) and writes them out as the run
+goes, in batches: the log and the trace at least every ``FLUSH_EVERY_S`` of
+wall time and of simulated time, the recording every ``FLUSH_EVERY_S`` of
+wall time:
+
+* the files the domain's views write (:mod:`cosim.record.views`, e.g. a
+  raw log in the domain's own format);
+* ``trace.part``: every port's rows so far (float64, the layout in
+  ``trace.part.json``), turned into ``trace.npz`` when the run ends (the full
+  trace: ``t_s`` plus one array per ``component.port``, shape
+  (ticks, *port shape), SI units) and then removed;
+* ``recording.rrd``: the rerun recording (see :mod:`cosim.record.rerun_log`); a
+  component that logs images or the like itself writes its part next to it
+  (``recording.<component>.rrd``, the same recording id), and its views join
+  the layout here.
+
+So a run stopped, failed or killed keeps what it recorded: a killed
+process loses at most the last batch; :func:`load_trace` reads a
+``trace.part`` left behind.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cosim.scenario.paths import distance_to_path
+from cosim.scenario.schema import Scenario
+from cosim.runtime.wiring import Wiring
+
+#: longest stretch of wall time, and of simulated time [s], not yet written out
+FLUSH_EVERY_S = 1.0
+
+
+class TraceRecorder:
+    def __init__(self, scenario: Scenario, wiring: Wiring, out_dir: Path, path=None):
+        self.scenario, self.wiring, self.out_dir, self.path = scenario, wiring, Path(out_dir), path
+        n = scenario.n_steps
+        self.t_s = np.arange(n) * scenario.dt_s
+        self.arrays = {(c, p.name): np.full((n, *p.shape), np.nan) for c in wiring.order for p in wiring.outputs[c]}
+        self.ticks = 0  # ticks recorded
+        self.written = 0  # ticks written to the log and the trace
+        self.drawn = 0  # ticks written to the recording
+        self.closed = False
+        self.files: dict[str, Path] = {}
+        self.tracking_error_m = np.full(n, np.nan)  # (n,) distance of truth to path [m], as far as drawn
+        self.roles = scenario.record.ports()  # {role: "component.port" or None}
+        #: the layout's views the components add for what they log themselves
+        self.views = [v for c in wiring.order for v in wiring.classes[c].recording_views(c)]
+        self._batch_ticks = max(int(round(FLUSH_EVERY_S / scenario.dt_s)), 1)
+        self._last_write = time.monotonic()
+        self._part = self._rrd = None
+        self._files: dict = {}  # the views' files, by key
+
+    @property
+    def tracks_path(self) -> bool:
+        """Whether the run has a tracking error: a path, and a ``truth`` role recording positions."""
+        truth = self.signal("truth", 0, 0)
+        return self.path is not None and truth is not None and truth.shape[1:] == (3,)
+
+    def open(self) -> None:
+        """Create the output files (headers only); called before the first tick."""
+        from cosim.record import rerun_log
+        from cosim.record.views import registered_views
+
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        views = [view for view in registered_views().values() if view.applies(self)]
+        for view in views:
+            self._files.update(view.open_files(self, self.out_dir))
+        self.files.update({key: file.path for key, file in self._files.items()})
+        layout = [[f"{c}.{p}", list(a.shape[1:])] for (c, p), a in self.arrays.items()]
+        (self.out_dir / "trace.part.json").write_text(json.dumps({"dtype": "<f8", "columns": [["t_s", []], *layout]}))
+        self._part = open(self.out_dir / "trace.part", "wb")
+        self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self, views, self.views)
+        self.files["recording"] = self.out_dir / "recording.rrd"
+
+    def on_tick(self, tick: int, t: float, values) -> None:
+        if self.closed:
+            return
+        for key, value in values.items():
+            self.arrays[key][tick] = value
+        self.ticks = tick + 1
+        if time.monotonic() - self._last_write >= FLUSH_EVERY_S:
+            self.write_out(recording=True)
+        elif self.ticks - self.written >= self._batch_ticks:
+            self.write_out(recording=False)
+
+    def signal(self, role: str, start: int = 0, stop: int | None = None) -> np.ndarray | None:
+        """The recorded array of a role of ``scenario.record`` (e.g. 'truth'), rows ``start:stop``
+        (default: up to the ticks run); None when the role is unbound or its port is not recorded."""
+        ref = self.roles.get(role)
+        if not ref:
+            return None
+        comp, _, port = ref.partition(".")
+        arr = self.arrays.get((comp, port))
+        return None if arr is None else arr[start: self.ticks if stop is None else stop]
+
+    def write_out(self, recording: bool = True) -> None:
+        """Append the ticks recorded since the last call to the log and the trace
+        (and, with ``recording``, to the rerun recording)."""
+        if self._part is None:
+            return
+        start, stop = self.written, self.ticks
+        if stop > start:
+            t_s = self.t_s[start:stop]
+            for file in self._files.values():
+                file.append(self, start, stop)
+            rows = [t_s[:, None], *(a[start:stop].reshape(stop - start, -1) for a in self.arrays.values())]
+            self._part.write(np.ascontiguousarray(np.hstack(rows), dtype="<f8").tobytes())
+            self._part.flush()
+            self.written = stop
+        if recording:
+            self._last_write = time.monotonic()
+            start = self.drawn
+            if stop > start:
+                error = None
+                if self.tracks_path:
+                    error = self.tracking_error_m[start:stop] = distance_to_path(
+                        self.path, self.signal("truth", start, stop), self.t_s[start:stop])
+                self._rrd.append(start, stop, error)
+                self.drawn = stop
+
+    def finish(self, error: str | None, event: str | None = None) -> None:
+        """Write the rest and close the files; ``event`` (a fault or a stop) goes into the recording."""
+        if self.closed:
+            return
+        self.closed = True
+        if self._part is None:
+            self.open()
+        self.write_out()
+        if event:
+            self._rrd.event(self.ticks * self.scenario.dt_s, event, "ERROR" if error else "WARN")
+        self._rrd.close()
+        for file in self._files.values():
+            file.close()
+        self._part.close()
+        n = self.ticks
+        trace = {f"{c}.{p}": a[:n] for (c, p), a in self.arrays.items()}
+        np.savez_compressed(self.out_dir / "trace.npz", t_s=self.t_s[:n], **trace)
+        self.files["trace"] = self.out_dir / "trace.npz"
+        (self.out_dir / "trace.part").unlink()
+        (self.out_dir / "trace.part.json").unlink()
+        if not self.tracks_path:
+            self.tracking_error_m = None
+        else:
+            self.tracking_error_m = self.tracking_error_m[:n]
+
+
+def load_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
+    """A run's trace: ``trace.npz``, or the ``trace.part`` of a run that was killed.
+
+    Returns ``{"t_s": (n,), "component.port": (n, *shape), ...}``.
+    """
+    run_dir = Path(run_dir)
+    if (run_dir / "trace.npz").is_file():
+        with np.load(run_dir / "trace.npz") as data:
+            return {k: data[k] for k in data.files}
+    part, layout = run_dir / "trace.part", run_dir / "trace.part.json"
+    if not (part.is_file() and layout.is_file()):
+        from cosim.contract.errors import UserError
+
+        raise UserError(f"run {run_dir}: no trace.npz (nor a trace.part of a run that was cut short)")
+    columns = json.loads(layout.read_text())["columns"]
+    widths = [int(np.prod(shape)) for _, shape in columns]
+    flat = np.frombuffer(part.read_bytes(), dtype="<f8")
+    rows = len(flat) // sum(widths)  # a row cut by the kill is dropped
+    table = flat[: rows * sum(widths)].reshape(rows, sum(widths))
+    edges = np.cumsum([0, *widths])
+    return {name: table[:, a:b].reshape(rows, *shape) for (name, shape), a, b in zip(columns, edges, edges[1:])}

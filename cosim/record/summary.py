@@ -1,0 +1,286 @@
+"""Figures of a run and of a sweep: summary.json content, the sweep table and plot.
+
+Run figures (all in mm or ms):
+
+* ``tracking_error_mm``: distance of the true position to the path, {mean, std, max};
+* ``estimation_error_mm``: distance of the estimate to the true position, {mean, std, max};
+* ``prediction_error_mm``: per-axis mean absolute and Euclidean RMS of the
+  estimator's innovation (measurement minus prediction at each frame),
+  {x, y, z, rmse};
+* ``solve_ms``: the controller's computation per step, {median, p99};
+* ``detection_error_mm``: distance of each measurement to the true position
+  at its capture time (the ``capture_time`` role; a camera without one is
+  taken to deliver at capture), {median, p99}.
+
+Components add figures of their own from their recorded outputs
+(:meth:`cosim.contract.component.Component.summary_figures`); a key another component
+or the framework already uses is prefixed with the component's name.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+METRICS = ("tracking_error_mm", "estimation_error_mm", "prediction_error_mm", "solve_ms", "detection_error_mm")
+#: the other keys of a run's summary.json (see :mod:`cosim.runtime.runner`), which no component figure takes
+RUN_KEYS = ("scenario", "status", "error", "steps", "sim_time_s", "wall_time_s", "realtime_factor",
+            "total_wall_time_s", "files", "realtime")
+
+
+def _stats(values_mm: np.ndarray | None) -> dict | None:
+    if values_mm is None:
+        return None
+    v = values_mm[np.isfinite(values_mm)]
+    if not len(v):
+        return None
+    return {"mean": float(np.mean(v)), "std": float(np.std(v)), "max": float(np.max(v))}
+
+
+def run_figures(recorder) -> dict[str, Any]:
+    """The metrics of one run from a :class:`~cosim.record.recorder.TraceRecorder`."""
+    out: dict[str, Any] = {k: None for k in METRICS}
+    if recorder.tracking_error_m is not None:
+        out["tracking_error_mm"] = _stats(recorder.tracking_error_m * 1e3)
+    truth, estimate = recorder.signal("truth"), recorder.signal("estimate")
+    if truth is not None and estimate is not None:
+        out["estimation_error_mm"] = _stats(np.linalg.norm(estimate - truth, axis=1) * 1e3)
+    innov = recorder.signal("prediction_error")
+    if innov is not None:
+        rows = innov[np.all(np.isfinite(innov), axis=1)] * 1e3
+        if len(rows):
+            mae = np.abs(rows).mean(axis=0)
+            out["prediction_error_mm"] = {"x": float(mae[0]), "y": float(mae[1]), "z": float(mae[2]),
+                                          "rmse": float(np.sqrt((rows**2).sum(axis=1).mean())), "frames": len(rows)}
+    solve = recorder.signal("solve_time")
+    if solve is not None:
+        out["solve_ms"] = _quantiles(solve * 1e3)
+    measured = recorder.signal("measured")
+    if measured is not None and truth is not None:
+        error_m = detection_error_m(measured, truth, recorder.t_s[: len(truth)], recorder.signal("capture_time"))
+        out["detection_error_mm"] = _quantiles(error_m * 1e3)
+    out.update(component_figures(recorder))
+    return out
+
+
+def _quantiles(values: np.ndarray) -> dict | None:
+    """{median, p99} of the finite ``values``, None if there is none."""
+    v = values[np.isfinite(values)]
+    if not len(v):
+        return None
+    return {"median": float(np.median(v)), "p99": float(np.percentile(v, 99))}
+
+
+def detection_error_m(measured_m: np.ndarray, truth_m: np.ndarray, t_s: np.ndarray,
+                      capture_time_s: np.ndarray | None = None) -> np.ndarray:
+    """Distance [m] of each measurement (n, 3) to the truth (n, 3) at its capture time.
+
+    ``t_s`` (n,): the rows' times; ``capture_time_s`` (n,): when each row's
+    measurement was captured (NaN or absent: at the row's own time); the
+    truth is interpolated linearly between rows. NaN where no measurement.
+    """
+    if not len(t_s):  # a run stopped before its first step
+        return np.zeros(0)
+    at = t_s if capture_time_s is None else np.where(np.isfinite(capture_time_s), capture_time_s, t_s)
+    truth_at = np.stack([np.interp(at, t_s, truth_m[:, i]) for i in range(3)], axis=1)
+    return np.linalg.norm(measured_m - truth_at, axis=1)
+
+
+def component_figures(recorder) -> dict[str, Any]:
+    """What each component adds to the summary from its recorded outputs (see the module doc)."""
+    wiring, n = recorder.wiring, recorder.ticks
+    out: dict[str, Any] = {}
+    for name in wiring.order:
+        outputs = {p.name: recorder.arrays[(name, p.name)][:n] for p in wiring.outputs[name]}
+        for key, value in wiring.classes[name].summary_figures(outputs).items():
+            out[f"{name}.{key}" if key in out or key in METRICS or key in RUN_KEYS else key] = value
+    return out
+
+
+#: the keys of a sweep row that are not labels: what the run gave, and where and by what it was made
+ROW_KEYS = ("status", "dir", "error", "host", "code", "artifacts")
+
+
+def label_keys(rows: list[dict]) -> list[str]:
+    return [k for k in rows[0] if k not in (*METRICS, *ROW_KEYS, "seeds")] if rows else []
+
+
+def sweep_table(rows: list[dict]) -> str:
+    """Markdown table: the labels, then every metric present in any row."""
+    if not rows:
+        return ""
+    labels = label_keys(rows)
+    cols = [("tracking error [mm]", lambda r: _pm(r.get("tracking_error_mm"))),
+            ("max [mm]", lambda r: _f(r.get("tracking_error_mm"), "max"))]
+    if any(r.get("estimation_error_mm") for r in rows):
+        cols.append(("estimation error [mm]", lambda r: _pm(r.get("estimation_error_mm"))))
+    if any(r.get("prediction_error_mm") for r in rows):
+        cols.append(("prediction x / y / z / RMSE [mm]", lambda r: "/".join(
+            _f(r.get("prediction_error_mm"), k) for k in ("x", "y", "z", "rmse"))))
+    if any(r.get("solve_ms") for r in rows):
+        cols.append(("solve median / p99 [ms]", lambda r: "/".join(
+            _f(r.get("solve_ms"), k, 3) for k in ("median", "p99"))))
+    cols.append(("status", lambda r: r["status"]))
+    lines = ["| " + " | ".join([*labels, *(c for c, _ in cols)]) + " |",
+             "|" + "---|" * (len(labels) + len(cols))]
+    for r in rows:
+        lines.append("| " + " | ".join([*(str(r[k]) for k in labels), *(fn(r) for _, fn in cols)]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _f(d: dict | None, key: str, digits: int = 2) -> str:
+    return f"{d[key]:.{digits}f}" if d and d.get(key) is not None else "-"
+
+
+def _pm(d: dict | None) -> str:
+    return f"{d['mean']:.2f} ± {d['std']:.2f}" if d else "-"
+
+
+def numeric_axes(rows: list[dict]) -> list[str]:
+    return [k for k in label_keys(rows) if all(isinstance(r[k], (int, float)) for r in rows)
+            and len({r[k] for r in rows}) > 1]
+
+
+def _groups(rows: list[dict], axis: str) -> tuple[list[str], dict[tuple, list[dict]]]:
+    """The other labels, and the rows grouped by their values, each group sorted along ``axis``."""
+    others = [k for k in label_keys(rows) if k != axis]
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r[k] for k in others), []).append(r)
+    return others, {key: sorted(members, key=lambda r: r[axis]) for key, members in groups.items()}
+
+
+#: labels whose values repeat an experiment rather than change it: rows differing only in them are pooled
+REPLICATE_LABELS = ("seed",)
+
+
+def pool_replicates(rows: list[dict]) -> list[dict]:
+    """Rows differing only in a replicate label (``seed``) pooled into one: the tracking error's
+    mean is the mean of the runs' means, ``std`` their spread (sample standard deviation over the
+    seeds, 0 for one), ``max`` the largest, ``min_mean``/``max_mean`` the runs' extremes and ``n``
+    the number of runs; status ``ok`` only if every run's is. Rows without a replicate label pass."""
+    if not rows or not any(k in label_keys(rows) for k in REPLICATE_LABELS):
+        return rows
+    labels = [k for k in label_keys(rows) if k not in REPLICATE_LABELS]
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(tuple(r[k] for k in labels), []).append(r)
+    out = []
+    for key, members in groups.items():
+        errs = [m["tracking_error_mm"] for m in members if m.get("tracking_error_mm")]
+        means = np.array([e["mean"] for e in errs])
+        pooled = None if not errs else {
+            "mean": float(means.mean()), "std": float(means.std(ddof=1)) if len(means) > 1 else 0.0,
+            "max": float(max(e["max"] for e in errs)), "min_mean": float(means.min()),
+            "max_mean": float(means.max()), "n": len(errs)}
+        status = "ok" if all(m["status"] == "ok" for m in members) and len(errs) == len(members) else "failed"
+        out.append({**dict(zip(labels, key)), "tracking_error_mm": pooled, "status": status,
+                    "seeds": [m[k] for m in members for k in REPLICATE_LABELS if k in m]})
+    return out
+
+
+def pooled_table(rows: list[dict]) -> str:
+    """Markdown table of :func:`pool_replicates`: per combination, the mean over the seeds, the spread."""
+    labels = [k for k in label_keys(rows) if k != "seeds"]
+    lines = ["| " + " | ".join([*labels, "seeds", "mean error [mm]", "spread over seeds (std) [mm]",
+                                "min / max of the seeds' means [mm]", "max [mm]", "status"]) + " |",
+             "|" + "---|" * (len(labels) + 6)]
+    for r in rows:
+        e = r.get("tracking_error_mm")
+        lines.append("| " + " | ".join([*(str(r[k]) for k in labels), str(len(r.get("seeds", []))),
+                                         _f(e, "mean"), _f(e, "std"),
+                                         f"{_f(e, 'min_mean')} / {_f(e, 'max_mean')}", _f(e, "max"),
+                                         r["status"]]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def monotonic_within_spread(rows: list[dict], axis: str, k: float = 2.0) -> list[dict]:
+    """Per group of pooled rows along ``axis``: whether the mean error never falls, from one value to
+    the next, by more than ``k`` times the two points' combined spread (a drop inside the seeds'
+    scatter is noise, a larger one a real non-monotonic curve). Lists the offending steps."""
+    out = []
+    others, groups = _groups(rows, axis)
+    for key, members in groups.items():
+        drops = []
+        for a, b in zip(members, members[1:]):
+            ea, eb = a.get("tracking_error_mm"), b.get("tracking_error_mm")
+            if not ea or not eb:
+                continue
+            allowed = k * float(np.hypot(ea.get("std", 0.0), eb.get("std", 0.0)))
+            if ea["mean"] - eb["mean"] > allowed:
+                drops.append([a[axis], b[axis], round(ea["mean"], 2), round(eb["mean"], 2)])
+        out.append({**dict(zip(others, key)), "axis": axis, "monotonic": not drops, "drops": drops})
+    return out
+
+
+def largest_below(rows: list[dict], threshold_mm: float) -> list[dict]:
+    """Per group of the other labels, the largest value of each numeric axis whose mean
+    tracking error stays below ``threshold_mm`` (and every smaller value's too); None if none does.
+    Runs repeated over seeds are pooled first (:func:`pool_replicates`): the mean over the seeds decides."""
+    rows = pool_replicates(rows)
+    out = []
+    for axis in numeric_axes(rows):
+        others, groups = _groups(rows, axis)
+        for key, members in groups.items():
+            best = None
+            for r in members:
+                e = r.get("tracking_error_mm")
+                if not e or r["status"] != "ok" or e["mean"] >= threshold_mm:
+                    break
+                best = r[axis]
+            out.append({**dict(zip(others, key)), "axis": axis, "largest_below": best,
+                        "threshold_mm": threshold_mm})
+    return out
+
+
+UNIT_SUFFIXES = {"_s": "s", "_ms": "ms", "_mm": "mm", "_m": "m", "_hz": "Hz", "_px": "px", "_deg": "deg"}
+STYLES = [("o", "-"), ("s", "--"), ("^", "-."), ("D", ":"), ("v", "-"), ("P", "--"), ("X", "-.")]
+
+
+def axis_label(name: str) -> str:
+    """A sweep axis as an axis label with its unit: ``interval_s`` -> ``interval [s]``."""
+    for suffix, unit in UNIT_SUFFIXES.items():
+        if name.lower().endswith(suffix):
+            return f"{name[: -len(suffix)].replace('_', ' ')} [{unit}]"
+    return name.replace("_", " ")
+
+
+def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = None, title: str = "") -> list[Path]:
+    """One PNG per numeric axis: mean tracking error against it, a line per group of other labels.
+
+    Lines differ in marker and dash and are drawn from the largest marker down, so coinciding lines stay visible.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+    rows = pool_replicates(rows)
+    for axis in numeric_axes(rows):
+        others, groups = _groups(rows, axis)
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for i, (key, members) in enumerate(groups.items()):
+            x = [r[axis] for r in members]
+            y = [(r.get("tracking_error_mm") or {}).get("mean", np.nan) for r in members]
+            marker, dash = STYLES[i % len(STYLES)]
+            if any("seeds" in r for r in members):  # the seeds' spread as error bars
+                ax.errorbar(x, y, yerr=[(r.get("tracking_error_mm") or {}).get("std", 0.0) for r in members],
+                            fmt="none", capsize=3, lw=0.8, color=f"C{i}")
+            ax.plot(x, y, color=f"C{i}", marker=marker, ls=dash, ms=max(9 - 1.5 * i, 3), mfc="none" if i % 2 else None,
+                    label=", ".join(f"{k}={v}" for k, v in zip(others, key)) or "run")
+        if threshold_mm:
+            ax.axhline(threshold_mm, color="k", ls="--", lw=1, label=f"{threshold_mm:g} mm")
+        ax.set_xlabel(axis_label(axis))
+        ax.set_ylabel("mean tracking error [mm]")
+        ax.set_title(f"{title + ': ' if title else ''}mean tracking error against {axis_label(axis)}", fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = out_dir / f"sweep_{axis}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        files.append(path)
+    return files

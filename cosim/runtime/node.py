@@ -1,0 +1,263 @@
+"""``cosim node``: one component in a process of its own, driven over zenoh.
+
+The node loads the same scenario file (same overrides) as the scheduler,
+sets its component up identically (same parameters, same seeded RNG),
+opens a zenoh peer session linked to the scheduler and to the other nodes,
+declares its liveliness token and serves, right in its subscribers'
+callbacks (one lock around them; the main thread only waits):
+
+* port values from its producers: stored by their tick stamp;
+* on ``cosim/{run}/ctl/tick``: a credit ``{"until": K}`` lets it step every
+  tick ``k < K`` that is due for it (its period) as soon as its inputs
+  stamped for ``k`` have arrived: step, publish the outputs; a ``check``
+  (set-up) asks which inputs' initial values have not arrived yet;
+* commands on ``cosim/{run}/ctl/{name}/cmd``: ``init`` (publish the initial
+  outputs), ``flush`` (report the steps held back, even none), ``stop``
+  (close the component and reply ``closed``, with the fault it set while
+  closing as ``close_fault``).
+
+The node also stops (closing its component, so a hardware driver makes its
+outputs safe) when the scheduler's liveliness token goes (its process ended
+or was killed), on SIGTERM and on Ctrl-C.
+
+Replies go to ``cosim/{run}/ctl/{name}/reply``: a JSON attachment and the
+outputs as the payload (see :func:`cosim.runtime.bus.encode_reply`). Steps are
+reported ``REPLY_BATCH`` at a time, ``{"name", "ticks": [...], "ok": true}``
+with each step's outputs in turn, and whenever the node runs out of credit;
+set-up phases and failures as ``{"name", "tick", "phase", "ok"[, "error",
+"fault"]}`` (a fault with the outputs of its step).
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+import zenoh
+
+from cosim.runtime import bus
+from cosim.contract.component import ComponentFault
+from cosim.runtime.fingerprint import Fingerprint, differences, fingerprint
+from cosim.runtime.placement import parse_cpu_list, pin_this_process
+from cosim.runtime.portcache import PortStore, expected_stamp
+from cosim.scenario.schema import Scenario
+from cosim.runtime.scheduler import REPLY_BATCH, WINDOW
+from cosim.runtime.stepper import Stepper, setup_component
+from cosim.runtime.wiring import Wiring
+
+IDLE_TIMEOUT_S = 120.0
+#: How long a node waits for its route to the scheduler before it replies anyway.
+ROUTE_WAIT_S = 30.0
+#: How long a node that refuses to join waits for that route to say so.
+REFUSAL_WAIT_S = 5.0
+
+
+class _Node:
+    """A set-up component's event handling. Handlers run under one lock, except
+    ``stop`` and ``flush``, which must work past a hung step.
+
+    ``edges``: ``(producer, port, producer's period, delay)`` of each input.
+    """
+
+    def __init__(self, stepper: Stepper, store: PortStore, edges: list[tuple[str, str, int, int]],
+                 period: int, dt_s: float, reply):
+        self.stepper, self.store, self.edges = stepper, store, edges
+        self.period, self.dt_s, self.reply = period, dt_s, reply
+        self.lock = threading.Lock()
+        self.stopped = threading.Event()
+        self.last_heard = time.monotonic()
+        self.next_tick = 0  # the next tick to step (or skip, if not due)
+        self.until = 0  # ticks below this are granted
+        self.failed = False
+        self.done_ticks: list[int] = []  # steps not reported yet, and their outputs
+        self.done_values: list = []
+        self.done_lock = threading.Lock()  # held briefly: a flush reports even past a hung step
+
+    def on_data(self, producer: str, ports: list[tuple[int, str]], layout: bus.ValueLayout,
+                sample: zenoh.Sample) -> None:
+        """A step's outputs of ``producer``: keep those of ``ports`` (their index in its declared
+        outputs, their name) that this node consumes."""
+        tick = bus.decode_tick(sample.attachment.to_bytes())
+        values = layout.split(sample.payload.to_bytes())[0]
+        with self.lock:
+            for i, port in ports:
+                self.store.store((producer, port), tick, values[i])
+            self._advance()
+
+    def on_tick(self, sample: zenoh.Sample) -> None:
+        msg = bus.decode_json(sample.payload.to_bytes())
+        with self.lock:
+            self.last_heard = time.monotonic()
+            if msg.get("check"):
+                missing = [f"{s}.{p}" for s, p, _, _ in self.edges if not self.store.has(s, p, -1)]
+                self.reply(-1, "check", missing=missing)
+            else:
+                self.until = max(self.until, msg["until"])
+                self._advance()
+
+    def on_cmd(self, sample: zenoh.Sample) -> None:
+        cmd = bus.decode_json(sample.payload.to_bytes())["cmd"]
+        if cmd == "stop":  # stop and flush not under the lock: a hung step holds it
+            self.stopped.set()
+        elif cmd == "flush":
+            self._report(phase="flush")
+        elif cmd == "init":
+            with self.lock:
+                self.last_heard = time.monotonic()
+                self.stepper.publish_initial()
+                self.reply(-1, "init", values=self.stepper.last_outputs)
+
+    def _inputs_ready(self, tick: int) -> bool:
+        return all(self.store.has(src, port, expected_stamp(tick, per, delay))
+                   for src, port, per, delay in self.edges)
+
+    def _report(self, phase: str | None = None) -> None:
+        """Reply with the steps not reported yet (a ``flush`` reply even with none)."""
+        with self.done_lock:
+            if self.done_ticks or phase:
+                self.reply(self.done_ticks[-1] if self.done_ticks else -1, phase, ticks=self.done_ticks,
+                           values=self.done_values)
+                self.done_ticks, self.done_values = [], []
+
+    def _advance(self) -> None:
+        """Step every granted tick whose inputs are in, in order; stop at the first that waits."""
+        while self.next_tick < self.until and not (self.failed or self.stopped.is_set()):
+            tick = self.next_tick
+            if tick % self.period:
+                self.next_tick += 1
+                continue
+            if not self._inputs_ready(tick):
+                return
+            self.next_tick += 1
+            t = tick * self.dt_s
+            try:
+                self.stepper.step(tick, t)
+            except ComponentFault as exc:  # its outputs (made safe) were published
+                self.failed = True
+                self._report()
+                self.reply(tick, error=str(exc), fault=f"{exc} (t = {t:.3f} s)", values=self.stepper.last_outputs)
+                return
+            except Exception as exc:  # the component's failure goes to the scheduler with its text
+                self.failed = True
+                self._report()
+                self.reply(tick, error=f"failed at t = {t:.3f} s: {type(exc).__name__}: {exc}")
+                return
+            with self.done_lock:
+                self.done_ticks.append(tick)
+                self.done_values.extend(self.stepper.last_outputs)
+                full = len(self.done_ticks) >= REPLY_BATCH
+            if full:
+                self._report()
+        if not self.failed:  # out of credit: the scheduler waits for these
+            self._report()
+
+
+def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str],
+          listen: list[str], cpus: str | None = None, run_dir: Path | None = None,
+          expected: Fingerprint | None = None, tls: bus.TlsFiles | None = None,
+          scenario_file: Path | None = None) -> int:
+    """Serve component ``name`` until told to stop; returns an exit status.
+
+    ``connect``: the scheduler's endpoint and those of the nodes started
+    before this one; ``listen``: where the nodes started after it connect;
+    ``cpus``: where to step (see :mod:`cosim.runtime.placement`), once set up on any CPU;
+    ``run_dir``: the run's output folder, for a component that writes files of its own;
+    ``expected``: the run's fingerprint: with another of its own the node refuses to join
+    (exit status 2); ``tls``: this host's files for mutual TLS with the run's other machines;
+    ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint).
+    """
+    if cpus is not None:
+        parse_cpu_list(cpus)  # a bad list fails before anything starts
+    if tls is not None:
+        tls.check(f"cosim node {name}")
+    mine = fingerprint(scenario, scenario_file or Path("."))
+    session = bus.open_session(listen=listen, connect=connect, tls=tls)
+    reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
+    edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
+
+    def reply(tick: int, phase: str | None = None, error: str | None = None, values=(), **extra) -> None:
+        msg = {"name": name, "tick": tick, "phase": phase, "ok": error is None, **extra}
+        if error:
+            msg["error"] = error
+        payload, attachment = bus.encode_reply(msg, values)
+        reply_pub.put(payload, attachment=attachment)
+
+    # the scheduler's reply subscriber may not be known here yet (a link to another machine, with its TLS
+    # handshake, can take longer than setting up): a reply sent before would be lost
+    def route_to_scheduler(timeout_s: float) -> bool:
+        return bool(bus.poll(lambda: reply_pub.matching_status.matching or None, timeout_s))
+
+    if expected is not None and mine != expected:
+        why = "; ".join(differences(mine, expected))
+        print(f"cosim node {name}: refusing to join run {run_id}: this node runs another experiment: {why}",
+              file=sys.stderr)
+        route_to_scheduler(REFUSAL_WAIT_S)
+        reply(-1, "ready", f"refused to join: its node runs another experiment than the run's: {why}")
+        time.sleep(0.5)  # let the reply leave before the session closes
+        session.close()
+        return 2
+    if not route_to_scheduler(ROUTE_WAIT_S):  # the scheduler is gone (or was never there)
+        print(f"cosim node {name}: no scheduler of run {run_id} reachable at {', '.join(connect)} within "
+              f"{ROUTE_WAIT_S:g} s; exiting", file=sys.stderr)
+        session.close()
+        return 1
+    try:
+        component = setup_component(scenario, wiring, name, run_dir)
+        if cpus is not None:  # the threads started from here on (subscribers') inherit it
+            pin_this_process(cpus)
+    except Exception as exc:  # reported to the scheduler, which names us
+        reply(-1, "ready", f"set-up failed: {exc}")
+        session.close()
+        return 1
+    timeout_s = scenario.components[name].timeout_s or scenario.timeout_s
+    store = PortStore([(src, port) for src, port, _, _ in edges], keep=WINDOW + 2)
+    stepper = Stepper(name, component, session, run_id, wiring, store, timeout_s)
+    node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply)
+    subs = []
+    for src, (names, layout) in bus.output_layouts({s: wiring.outputs[s] for s, _, _, _ in edges}).items():
+        used = [(i, port) for i, port in enumerate(names) if any(e[:2] == (src, port) for e in edges)]
+        subs.append(session.declare_subscriber(bus.outputs_key(run_id, src),
+                                               lambda s, a=(src, used, layout): node.on_data(*a, s)))
+    subs.append(session.declare_subscriber(bus.tick_key(run_id), node.on_tick))
+    subs.append(session.declare_subscriber(bus.ctl_key(run_id, name, "cmd"), node.on_cmd))
+    token = session.liveliness().declare_token(bus.alive_key(run_id, name))
+    gone = []  # why the node stops on its own
+
+    def on_scheduler(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.DELETE and not node.stopped.is_set():
+            gone.append("the scheduler's process ended")
+            node.stopped.set()
+
+    subs.append(session.liveliness().declare_subscriber(bus.scheduler_alive_key(run_id), on_scheduler))
+    if threading.current_thread() is threading.main_thread():
+        def on_term(signum, frame):
+            if not node.stopped.is_set():
+                gone.append(signal.Signals(signum).name)
+            node.stopped.set()
+
+        signal.signal(signal.SIGTERM, on_term)
+        signal.signal(signal.SIGINT, on_term)
+    reply(-1, "ready", fingerprint=mine.as_dict())
+    status = 0
+    try:
+        while not node.stopped.wait(1.0):
+            if time.monotonic() - node.last_heard > IDLE_TIMEOUT_S:
+                print(f"cosim node {name}: nothing from the scheduler for {IDLE_TIMEOUT_S:g} s, exiting",
+                      file=sys.stderr)
+                status = 1
+                break
+        if gone:
+            print(f"cosim node {name}: stopping ({gone[0]}); component closed", file=sys.stderr)
+            status = 1
+    finally:
+        node.stopped.set()
+        for sub in subs:
+            sub.undeclare()
+        if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
+            reply(-1, "closed", close_fault=stepper.close())
+        token.undeclare()  # after the reply: the scheduler waits for it while the node lives
+        session.close()
+    return status

@@ -1,0 +1,100 @@
+"""Steps one component on the bus: gather its inputs for a tick, step, publish.
+
+Used alike by the scheduler for components in its own process and by
+``cosim node`` for a component in a process of its own, so both paths read
+and write exactly the same bytes.
+"""
+
+from __future__ import annotations
+
+import zlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zenoh
+
+from cosim.runtime import bus
+from cosim.contract.component import Component, ComponentError, ComponentFault
+from cosim.scenario.paths import make_path
+from cosim.runtime.portcache import PortCache, expected_stamp
+from cosim.scenario.schema import Scenario
+from cosim.runtime.wiring import Wiring
+
+
+def component_rng(seed: int, name: str) -> np.random.Generator:
+    """A generator private to one component, the same in every process layout."""
+    return np.random.default_rng([seed, zlib.crc32(name.encode())])
+
+
+def setup_component(scenario: Scenario, wiring: Wiring, name: str, run_dir: Path | None = None) -> Component:
+    """Instantiate and set up component ``name`` with its params, ``dt`` and (if asked) the path
+    and the run's output folder ``run_dir`` with the recording's id (see :class:`Component`)."""
+    spec = scenario.components[name]
+    component = wiring.classes[name]()
+    params: dict[str, Any] = {"dt": scenario.dt_s, **spec.params}
+    if getattr(component, "uses_path", False):
+        if scenario.path is None:
+            raise ComponentError(f"component {name!r} ({spec.plugin}) needs a path; the scenario has none")
+        params["path"] = make_path(scenario.path.plugin, scenario.path.params)
+    if getattr(component, "uses_run_dir", False):
+        params["run_dir"] = None if run_dir is None else Path(run_dir)
+        params["recording_id"] = scenario.recording_id
+        params["name"] = name
+    try:
+        component.setup(params, component_rng(scenario.seed, name))
+    except ComponentError as exc:
+        raise ComponentError(f"components.{name} ({spec.plugin}): {exc}") from None
+    return component
+
+
+class Stepper:
+    """Holds one set-up component and its bus endpoints."""
+
+    def __init__(self, name: str, component: Component, session: zenoh.Session, run_id: str,
+                 wiring: Wiring, cache: PortCache, timeout_s: float):
+        self.name = name
+        self.component = component
+        self.cache = cache
+        self.timeout_s = timeout_s
+        self.period = wiring.periods[name]
+        self._inputs = [(e.dst_port, e.src, e.src_port, wiring.periods[e.src], e.delay)
+                        for e in wiring.edges_into(name)]
+        self._ports = {p.name: p.shape for p in wiring.outputs[name]}
+        # a component without outputs (a scope, a logger) publishes nothing
+        self._pub = bus.publisher(session, bus.outputs_key(run_id, name)) if self._ports else None
+        #: the values last published, in the declared port order
+        self.last_outputs: list[np.ndarray] = []
+
+    def publish_initial(self) -> None:
+        self._publish(-1, self.component.initial_outputs())
+
+    def step(self, tick: int, t: float) -> None:
+        inputs = {dst: self.cache.get(src, port, expected_stamp(tick, period, delay), self.timeout_s)
+                  for dst, src, port, period, delay in self._inputs}
+        self._publish(tick, self.component.step(t, inputs))
+        if self.component.fault:
+            raise ComponentFault(self.component.fault)
+
+    def _publish(self, tick: int, outputs: dict[str, np.ndarray]) -> None:
+        if outputs is None or outputs.keys() != self._ports.keys():
+            got = sorted(outputs or {})
+            raise ComponentError(f"returned ports {got}, expected {sorted(self._ports)}")
+        values = {}
+        for port, shape in self._ports.items():
+            values[port] = np.asarray(outputs[port], dtype=float)
+            if values[port].shape != shape:
+                raise ComponentError(f"output {port!r} has shape {values[port].shape}, declared {shape}")
+        self.last_outputs = list(values.values())
+        if self._pub is not None:
+            payload, attachment = bus.encode_outputs(self.last_outputs, tick)
+            self._pub.put(payload, attachment=attachment)
+
+    def close(self) -> str | None:
+        """Close the component; returns the fault it set while closing (see :class:`Component`), if any."""
+        if self._pub is not None:
+            self._pub.undeclare()
+        before = self.component.fault
+        self.component.close()
+        after = self.component.fault
+        return after if after and after != before else None

@@ -1,0 +1,216 @@
+"""HOSTS.yaml: where each component of a run over machines runs, and how its node starts.
+
+``cosim run SCENARIO --processes --hosts HOSTS.yaml`` reads it::
+
+    launch: manual            # how nodes on other machines start: manual (default) or ssh
+    wait_s: 600               # how long the run waits for every node to join [s]
+    tls: {ca: certs/ca.pem}   # the run's CA certificate; `cosim certs HOSTS.yaml` makes it and the hosts'
+    scheduler: {host: sim, listen: tls/10.0.0.1:7447}
+    hosts:
+      sim: {address: 10.0.0.1, cert: certs/sim.pem, key: certs/sim.key}
+      lab:
+        address: 10.0.0.2           # where the host is reached; its certificate names it
+        launch: ssh                 # this host's own mode (local: it is this machine)
+        ssh: lab@lab-pc             # ssh's destination (default: the address)
+        workdir: /home/lab/cosim    # the folder there that matches the one `cosim run` runs in
+        python: .venv/bin/python    # the interpreter there with cosim installed (relative to workdir)
+        cert: certs/lab.pem
+        key: certs/lab.key
+    components:
+      driver: {host: lab, listen: tls/10.0.0.2:7450, cpus: "1"}
+
+Paths (certificates) are relative to the file's folder. The scheduler's host
+is this machine; a component not listed runs here too, on a free port. A
+run whose components are on more than one host must use ``tls/`` endpoints
+with the run's certificates (mutual TLS), so no other host on the network
+can join it or publish to its keys. Errors name the file, the field and its
+line.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import socket
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from cosim.runtime.bus import TlsFiles
+from cosim.contract.errors import UserError
+from cosim.scenario.schema import Scenario, error_lines, line_of, load_document
+
+ENDPOINT = re.compile(r"^(tcp|tls)/(\[[^\]]+\]|[^:/\s\[\]]+):(\d{1,5})$")
+
+
+class HostsError(UserError):
+    """A hosts file is invalid; the message names the file, the field and its line."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class TlsSpec(_Strict):
+    ca: str = Field(description="the run's CA certificate (PEM), relative to the hosts file")
+
+
+class HostSpec(_Strict):
+    address: str = Field(description="IP address or DNS name the host is reached at (its certificate names it)")
+    launch: Literal["local", "ssh", "manual"] | None = Field(None, description="how its nodes start")
+    ssh: str | None = Field(None, description="ssh destination (default: the address)")
+    workdir: str | None = Field(None, description="the folder there matching the one `cosim run` runs in")
+    python: str = Field(".venv/bin/python", description="interpreter there with cosim installed")
+    cert: str | None = Field(None, description="this host's certificate (PEM), relative to the hosts file")
+    key: str | None = Field(None, description="this host's private key (PEM), relative to the hosts file")
+
+
+class PlacementSpec(_Strict):
+    host: str
+    listen: str | None = Field(None, description="endpoint the node listens on, e.g. tls/10.0.0.2:7450")
+    cpus: str | None = Field(None, description="CPUs the node runs on there, e.g. 1 or 0,2-3")
+
+
+class SchedulerSpec(_Strict):
+    host: str
+    listen: str | None = None
+
+
+class HostsFile(_Strict):
+    launch: Literal["ssh", "manual"] = "manual"
+    wait_s: float = Field(600.0, gt=0)
+    tls: TlsSpec | None = None
+    scheduler: SchedulerSpec
+    hosts: dict[str, HostSpec]
+    components: dict[str, PlacementSpec] = Field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class NodePlace:
+    """Where one component's node runs and how it starts."""
+
+    component: str
+    host: str
+    listen: str
+    cpus: str | None
+    launch: str  # local | ssh | manual
+    tls: TlsFiles | None
+    ssh: str
+    workdir: str
+    python: str
+
+
+@dataclass(frozen=True)
+class HostsPlan:
+    path: Path
+    scheduler_listen: str
+    scheduler_tls: TlsFiles | None
+    nodes: dict[str, NodePlace]
+    wait_s: float
+
+
+def load_hosts(path: Path, scenario: Scenario) -> HostsPlan:
+    """Read and check ``path`` against ``scenario``'s components; returns the placement of every node."""
+    path = Path(path)
+    data, node = load_document(path, "hosts file")
+    try:
+        spec = HostsFile.model_validate(data)
+    except ValidationError as exc:
+        raise HostsError(f"{path}: invalid hosts file\n" + "\n".join(error_lines(exc, node))) from None
+
+    def fail(loc: tuple, message: str):
+        line = line_of(node, loc)
+        raise HostsError(f"{path}: {'.'.join(map(str, loc))}{f' (line {line})' if line else ''}: {message}")
+
+    for loc, host in [(("scheduler", "host"), spec.scheduler.host),
+                      *((("components", c, "host"), p.host) for c, p in spec.components.items())]:
+        if host not in spec.hosts:
+            fail(loc, f"no host {host!r} under hosts (have: {', '.join(spec.hosts)})")
+    for name in spec.components:
+        if name not in scenario.components:
+            fail(("components", name), f"the scenario has no component {name!r} "
+                                       f"(have: {', '.join(scenario.components)})")
+    here = spec.scheduler.host
+    if spec.hosts[here].launch not in (None, "local"):
+        fail(("hosts", here, "launch"), f"{here} runs the scheduler: it is this machine (launch: local)")
+    used = {here, *(spec.components[c].host for c in spec.components)}
+    base = path.parent
+
+    def tls_of(host: str) -> TlsFiles | None:
+        h = spec.hosts[host]
+        if spec.tls is None or h.cert is None or h.key is None:
+            return None
+        return TlsFiles(base / spec.tls.ca, base / h.cert, base / h.key)
+
+    def launch_of(host: str) -> str:
+        return "local" if host == here else spec.hosts[host].launch or spec.launch
+
+    def endpoint(loc: tuple, text: str | None, host: str) -> str:
+        """The checked endpoint, or a free port on the host's address (this machine only)."""
+        address = spec.hosts[host].address
+        if text is None:
+            if launch_of(host) != "local":
+                fail(loc, f"needs an endpoint (e.g. tls/{address}:7450): host {host} is another machine")
+            text = f"{'tls' if len(used) > 1 else 'tcp'}/{address}:{_free_port(address)}"
+        match = ENDPOINT.match(text)
+        if not match:
+            fail(loc, f"{text!r} is not an endpoint: expected tcp/ADDRESS:PORT or tls/ADDRESS:PORT")
+        if match[2].strip("[]") != address:
+            fail(loc, f"{text} is not at host {host}'s address {address} (its certificate names that address)")
+        if len(used) > 1 and match[1] != "tls":
+            fail(loc, f"{text}: a run over more than one host links its machines with mutual TLS: use a "
+                      f"tls/ endpoint (and the run's certificates, see cosim certs)")
+        if match[1] == "tls":
+            need_tls(loc, host)
+        return text
+
+    def need_tls(loc: tuple, host: str) -> None:
+        if spec.tls is None:
+            fail(("tls",), f"missing: {'.'.join(map(str, loc))} is a tls/ endpoint, which needs the run's CA "
+                           "certificate (tls: {ca: certs/ca.pem}; cosim certs HOSTS.yaml makes it)")
+        for field in ("cert", "key"):
+            if getattr(spec.hosts[host], field) is None:
+                fail(("hosts", host), f"missing {field}: host {host} has a tls/ endpoint "
+                                      "(cosim certs HOSTS.yaml makes the run's certificates)")
+
+    scheduler_listen = endpoint(("scheduler", "listen"), spec.scheduler.listen, here)
+    nodes = {}
+    for name in scenario.components:
+        place = spec.components.get(name) or PlacementSpec(host=here)
+        h = spec.hosts[place.host]
+        listen = endpoint(("components", name, "listen"), place.listen, place.host)
+        nodes[name] = NodePlace(name, place.host, listen, place.cpus, launch_of(place.host),
+                                tls_of(place.host) if listen.startswith("tls/") else None,
+                                h.ssh or h.address, h.workdir or os.getcwd(), h.python)
+    for host in sorted(used):
+        files = tls_of(host)
+        if files is not None and launch_of(host) == "local":  # on other machines the node checks its own
+            for field, file in (("tls.ca", files.ca), (f"hosts.{host}.cert", files.cert),
+                                (f"hosts.{host}.key", files.key)):
+                if not file.is_file():
+                    fail(tuple(field.split(".")), f"{file} does not exist (cosim certs {path} makes the run's "
+                                                  "certificates)")
+    return HostsPlan(path, scheduler_listen, tls_of(here) if scheduler_listen.startswith("tls/") else None,
+                     nodes, spec.wait_s)
+
+
+def read_hosts_file(path: Path) -> tuple[HostsFile, Path]:
+    """The validated hosts file alone (no scenario), and its folder: for ``cosim certs``."""
+    data, node = load_document(path, "hosts file")
+    try:
+        return HostsFile.model_validate(data), Path(path).parent
+    except ValidationError as exc:
+        raise HostsError(f"{path}: invalid hosts file\n" + "\n".join(error_lines(exc, node))) from None
+
+
+def _free_port(address: str) -> int:
+    family = socket.AF_INET6 if ":" in address else socket.AF_INET
+    with socket.socket(family) as s:
+        try:
+            s.bind((address.strip("[]"), 0))
+        except OSError as exc:
+            raise HostsError(f"cannot listen on {address} here ({exc.strerror}): is it this machine's address?") \
+                from None
+        return s.getsockname()[1]

@@ -1,0 +1,389 @@
+"""YAML scenario -> validated :class:`Scenario` (pydantic, unknown fields rejected).
+
+A scenario picks the components (plugin, params, input wiring), the path,
+the duration, the step and the seed, and optionally a sweep. Errors name the
+field and the YAML line. Overrides (``--set a.b.c=value``) and sweep axes use
+the same dotted paths into the YAML document.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import json
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from cosim.runtime.bus import RESERVED_NAMES
+from cosim.contract.errors import UserError
+
+
+class ScenarioError(UserError):
+    """A scenario file or override is invalid; the message names the field and line."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+
+class InputSpec(_Strict):
+    """One input wire: ``from: component.port``; ``delay: 1`` breaks a cycle (value of the previous tick)."""
+
+    source: str = Field(alias="from", pattern=r"^[A-Za-z_][\w-]*\.[A-Za-z_]\w*$")
+    delay: int = Field(0, ge=0, le=1)
+
+    @property
+    def component(self) -> str:
+        return self.source.split(".", 1)[0]
+
+    @property
+    def port(self) -> str:
+        return self.source.split(".", 1)[1]
+
+
+class ComponentSpec(_Strict):
+    plugin: str = Field(description="registered component name, see `cosim plugins`")
+    params: dict[str, Any] = Field(default_factory=dict)
+    inputs: dict[str, InputSpec] = Field(default_factory=dict)
+    period: int = Field(1, ge=1, description="update period in multiples of dt_s")
+    timeout_s: float | None = Field(None, gt=0, description="per-step timeout; default: the scenario's")
+
+    @field_validator("inputs", mode="before")
+    @classmethod
+    def _shorthand(cls, value):
+        if isinstance(value, dict):
+            return {k: ({"from": v} if isinstance(v, str) else v) for k, v in value.items()}
+        return value
+
+
+class PathSpec(_Strict):
+    plugin: str
+    params: dict[str, Any] = Field(default_factory=dict)
+
+
+class RecordSpec(_Strict):
+    """Which ports play which role in the summary and the recording.
+
+    ``truth`` is the tracking-error reference (its distance to the path);
+    ``measured`` and ``estimate`` are what the sensor and the estimator made of
+    it. Any role may be null. The domain's views (hook ``cosim_register_views``)
+    read roles of their own, with defaults they give; a scenario binds them here
+    too, by the same ``role: component.port``.
+    """
+
+    model_config = ConfigDict(extra="allow")
+
+    measured: str | None = "camera.position"
+    truth: str | None = "plant.position"
+    estimate: str | None = "estimator.position"
+    solve_time: str | None = "controller.solve_time"
+    #: Measurement minus the estimator's prediction at each frame (NaN between frames).
+    prediction_error: str | None = "estimator.innovation"
+    #: When each measurement was captured [s] (a sensor that has no such port: at delivery).
+    capture_time: str | None = "camera.capture_time"
+
+    @model_validator(mode="after")
+    def _known_roles(self):
+        from cosim.record.views import view_roles
+
+        extra = set(self.model_extra or {})
+        known = view_roles()
+        unknown = sorted(extra - set(known))
+        if unknown:
+            listing = ", ".join(sorted({*type(self).model_fields, *known}))
+            raise ValueError(f"unknown role {unknown[0]!r}; the roles are {listing}")
+        for role, port in (self.model_extra or {}).items():
+            if port is not None and not (isinstance(port, str) and "." in port):
+                raise ValueError(f"{role}: expected component.port or null, got {port!r}")
+        return self
+
+    def ports(self) -> dict[str, str | None]:
+        """Every role's port: the views' defaults, then this scenario's bindings."""
+        from cosim.record.views import view_roles
+
+        return {**view_roles(), **self.model_dump()}
+
+
+class ReportSpec(_Strict):
+    """Extra figures for a sweep's summary."""
+
+    threshold_mm: float | None = Field(None, gt=0, description=(
+        "report, per group of the other labels, the largest value of each numeric sweep axis "
+        "whose mean tracking error stays below this"))
+
+
+class Scenario(_Strict):
+    name: str
+    description: str = ""
+    duration_s: float = Field(gt=0)
+    dt_s: float = Field(0.02, gt=0, le=1.0)
+    seed: int = 0
+    profile: str = Field("ideal", description=(
+        "the parameter set of the components' physical and sensor effects: a profile a plugin registers "
+        "(see `cosim plugins`); its values are set before the file's --set overrides and sweep axes"))
+    plugins: list[str] = Field(default_factory=list,
+                               description="Python plugin files to load, relative to the scenario file")
+    timeout_s: float = Field(30.0, gt=0, description="default per-step timeout of every component")
+    realtime: float | None = Field(None, gt=0, description=(
+        "pace the ticks on the wall clock at this factor of real time (1: real time, as against "
+        "hardware); late ticks are skipped and counted; none: as fast as possible"))
+    path: PathSpec | None = None
+    components: dict[str, ComponentSpec]
+    record: RecordSpec = Field(default_factory=RecordSpec)
+    sweep: dict[str, list[Any]] = Field(default_factory=dict)
+    report: ReportSpec = Field(default_factory=ReportSpec)
+
+    @model_validator(mode="after")
+    def _check_wiring(self):
+        for name, comp in self.components.items():
+            if name in RESERVED_NAMES or not name.replace("_", "a").replace("-", "a").isalnum():
+                raise ValueError(f"component name {name!r} is reserved or not a plain word")
+            for port, wire in comp.inputs.items():
+                if wire.component not in self.components:
+                    raise ValueError(
+                        f"components.{name}.inputs.{port}: source component {wire.component!r} "
+                        f"is not in the scenario (have: {', '.join(self.components)})"
+                    )
+        for axis, values in self.sweep.items():
+            if not values:
+                raise ValueError(f"sweep.{axis}: needs at least one value")
+        return self
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.duration_s / self.dt_s))
+
+    @property
+    def recording_id(self) -> str:
+        """The id every file of a run's rerun recording shares (the viewer merges files by it)."""
+        return self.name
+
+
+# ---------------------------------------------------------------- loading
+
+
+#: libyaml's parser where PyYAML has it (a sweep reads its scenario once per run: ~10x faster)
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class YamlDocument:
+    """A YAML file's text, whose node tree (for the line of a field) is composed only when asked."""
+
+    def __init__(self, text: str):
+        self.text = text
+
+    @functools.cached_property
+    def node(self) -> yaml.Node | None:
+        return yaml.compose(self.text, Loader=_LOADER)
+
+
+def load_document(path: str | Path, what: str = "scenario") -> tuple[dict, YamlDocument]:
+    """Read a YAML file (a ``what``: scenario, hosts file) as ``(data, document)``; syntax errors
+    name the line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"{what} file {path} does not exist" if what == "scenario" else
+                            f"{what} {path} does not exist")
+    text = path.read_text()
+    try:
+        data = yaml.load(text, Loader=_LOADER)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark else ""
+        raise ScenarioError(f"{path}{where}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{path}: a {what} is a YAML mapping, got {type(data).__name__}")
+    return data, YamlDocument(text)
+
+
+def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scenario:
+    """Load, apply ``key=value`` overrides, validate. Errors name field and line."""
+    data, node = load_document(path)
+    parsed = [parse_override(item) for item in overrides]
+    for key, value in parsed:
+        set_dotted(data, key, value)
+    # its plugin files first: they may register the profile, the recorded roles, the components it names
+    files = data.get("plugins")
+    load_scenario_plugins(files if isinstance(files, list) else [], Path(path).parent)
+    apply_profile(data, data.get("profile", "ideal"), source=str(path), explicit=_explicit_params(parsed))
+    return validate(data, source=str(path), node=node)
+
+
+def _explicit_params(parsed: list[tuple[str, Any]]) -> dict[str, set[str]]:
+    """Per component, the parameters ``--set`` overrides (and sweep axes) name: a profile leaves them."""
+    out: dict[str, set[str]] = {}
+    for key, value in parsed:
+        parts = key.split(".")
+        if len(parts) >= 3 and parts[0] == "components" and parts[2] == "params":
+            names = out.setdefault(parts[1], set())
+            if len(parts) > 3:
+                names.add(parts[3])
+            elif isinstance(value, dict):
+                names.update(value)
+        elif len(parts) == 2 and parts[0] == "components" and isinstance(value, dict):
+            out.setdefault(parts[1], set()).update(value.get("params") or {})
+    return out
+
+
+def apply_profile(data: dict, name: Any, source: str = "<scenario>",
+                  explicit: dict[str, set[str]] | None = None) -> None:
+    """Set the parameters profile ``name`` gives each component by its plugin (``ideal``: none).
+
+    A profile (registered by a plugin, :func:`cosim.contract.plugins.registry` ``("profile")``) is
+    ``{plugin name: {param: value}}``; the values land in ``components.NAME.params`` of every
+    component using that plugin (after the overrides, so a sweep axis that swaps the plugin gets
+    the new plugin's), replacing the file's values but not those an override names (``explicit``:
+    ``{component: {param, ...}}``): ``--set`` and sweep axes win over the profile.
+    """
+    explicit = explicit or {}
+    values = profile_values(name, source)
+    for cname, comp in (data.get("components") or {}).items():
+        if isinstance(comp, dict) and comp.get("plugin") in values:
+            params = comp.get("params") or {}
+            keep = explicit.get(cname, set())
+            comp["params"] = {**params, **{k: v for k, v in values[comp["plugin"]].items() if k not in keep}}
+    data["profile"] = name
+
+
+def profile_values(name: Any, source: str = "<scenario>") -> dict:
+    """The values profile ``name`` sets, ``{plugin name: {param: value}}`` (``ideal``, unless a plugin
+    registers it: none); an unknown profile raises :class:`ScenarioError` naming ``source``."""
+    from cosim.contract.plugins import registry
+
+    profiles = registry("profile")
+    if name == "ideal" and name not in profiles:
+        return {}
+    if name not in profiles:
+        raise ScenarioError(f"{source}: profile {name!r} unknown; known: {', '.join(['ideal', *sorted(profiles)])}")
+    return profiles[name]
+
+
+def load_scenario_plugins(files: list, base_dir: Path) -> None:
+    """Register a scenario's own plugin ``files`` (paths relative to ``base_dir``; what is not a
+    string is left to the scenario's validation to report)."""
+    from cosim.contract.plugins import load_plugin_file
+
+    for item in files:
+        if not isinstance(item, str):
+            continue
+        file = Path(item) if Path(item).is_absolute() else base_dir / item
+        load_plugin_file(file)
+
+
+def validate(data: dict, source: str = "<scenario>", node: YamlDocument | yaml.Node | None = None) -> Scenario:
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(error_lines(exc, node))) from None
+
+
+def error_lines(exc: ValidationError, node: YamlDocument | yaml.Node | None) -> list[str]:
+    """One line per error of a pydantic validation: the field's dotted path, its YAML line, what is wrong."""
+    lines = []
+    for err in exc.errors():
+        loc = [str(p) for p in err["loc"]]
+        field = ".".join(loc) or "(top level)"
+        line = line_of(node, err["loc"])
+        where = f" (line {line})" if line else ""
+        msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
+        lines.append(f"  {field}{where}: {msg}")
+    return lines
+
+
+def line_of(node: YamlDocument | yaml.Node | None, loc) -> int | None:
+    """1-based line of the deepest YAML node on the path ``loc``."""
+    if isinstance(node, YamlDocument):
+        node = node.node
+    line = None
+    for key in loc:
+        if isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                if k.value == str(key):
+                    line = k.start_mark.line + 1
+                    node = v
+                    break
+            else:
+                return line
+        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+            node = node.value[key]
+            line = node.start_mark.line + 1
+        else:
+            return line
+    return line
+
+
+# ---------------------------------------------------------------- overrides and sweeps
+
+
+def parse_override(item: str) -> tuple[str, Any]:
+    if "=" not in item:
+        raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.camera.params.interval_s=0.1")
+    key, raw = item.split("=", 1)
+    try:
+        value = yaml.safe_load(raw) if raw else None
+    except yaml.YAMLError:
+        value = raw
+    return key.strip(), value
+
+
+def set_dotted(data: dict, key: str, value: Any) -> None:
+    """Set ``data[a][b][c] = value`` for ``key = 'a.b.c'``, creating mappings as needed."""
+    parts = key.split(".")
+    cur = data
+    for i, part in enumerate(parts[:-1]):
+        nxt = cur.get(part) if isinstance(cur, dict) else None
+        if nxt is None:
+            nxt = cur[part] = {}
+        if not isinstance(nxt, dict):
+            raise ScenarioError(f"cannot set {key!r}: {'.'.join(parts[: i + 1])} is not a mapping")
+        cur = nxt
+    cur[parts[-1]] = value
+
+
+#: top-level fields a sweep axis may name plainly (``seed: [1, 2, 3]`` repeats every run over seeds)
+TOP_LEVEL_AXES = ("seed", "profile", "duration_s")
+
+
+def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]]:
+    """One ``(labels, overrides)`` per combination of the sweep axes (product order).
+
+    An axis named by a dotted path (``components.camera.params.interval_s``)
+    sets that field; its label is the last part (``interval_s``); so does an
+    axis named by a top-level field (``seed``, ``profile``: :data:`TOP_LEVEL_AXES`). An axis with
+    a plain name (``estimator``) lists mappings of dotted paths to values,
+    each with an optional ``label`` (default: the first value) and any other
+    plain keys as further labels (``model: physical``).
+    Overrides are ``key=value`` strings as ``--set`` takes them.
+    """
+    axes = list(scenario.sweep.items())
+    out = []
+    for combo in itertools.product(*[values for _, values in axes]):
+        labels: dict[str, Any] = {}
+        overrides: list[str] = []
+        for axis, value in zip(axes, combo):
+            axis = axis[0]
+            if "." in axis or (axis in TOP_LEVEL_AXES and not isinstance(value, dict)):
+                overrides.append(f"{axis}={json.dumps(value)}")
+                labels[axis.rsplit(".", 1)[-1]] = value
+                continue
+            if not isinstance(value, dict):
+                raise ScenarioError(f"sweep.{axis}: each value must be a mapping of dotted keys to values")
+            value = dict(value)
+            label = value.pop("label", None)
+            for k, v in value.items():
+                if "." in k:
+                    overrides.append(f"{k}={json.dumps(v)}")
+                    label = v if label is None else label
+                else:  # a plain key is one more label of this run (e.g. model: physical)
+                    labels[k] = v
+            labels[axis] = label
+        out.append((labels, overrides))
+    return out
+
+
+def json_schema() -> dict:
+    """JSON Schema of the scenario format (for editors)."""
+    return Scenario.model_json_schema(by_alias=True)

@@ -1,0 +1,392 @@
+"""The form of a missing effect: sparse regression of the force the reference model leaves unexplained.
+
+When no listed effect explains the error (or on ``cosim diagnose --discover``),
+the residual force is regressed on a library of candidate force terms
+(:data:`TERMS`: constants, position, velocity and command, |v| v, |u| u,
+position x command, drag near a wall, quadratic position terms; not the
+model's own drag, thrust and weight terms) by sparse regression: forward
+orthogonal least squares (pysindy's ``FROLS``, :func:`forward_selection`: one
+term at a time, the one that explains most of what is left), in the same
+output-error setting as the effect fits:
+
+1. each term j, a force ``coefficient x feature_j(p, v, u) e_axis``, is added
+   to the reference model with coefficient 0, and the sensitivity of the
+   predicted positions of the training windows (initial states eliminated)
+   to its coefficient is taken by a finite difference; the host model's own
+   parameters get columns too and are projected out (they stay free);
+2. forward selection fits the training windows' position residuals with
+   1, 2, ... :data:`MAX_TERMS` terms; the number of terms is chosen on the
+   *held-out* windows (the sparsest form that keeps 80 % of the largest drop
+   of held-out error), and a drop that is not significant (paired t over
+   blocks of windows below the verdict's :data:`MIN_T`) is no form;
+3. the chosen terms become an effect (parameters = coefficients) refitted
+   jointly with the model; its drop of held-out error is reported with the
+   form in words (:func:`describe`) and written as an effect file
+   (:func:`effect_source`) that ``--effects-file`` loads and ``--add`` refits.
+
+Units: p mm, v mm/s, u Hz, force uN.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.verdict import BLOCK_S, MIN_T, paired_t
+
+AXES = "xyz"
+WALL_MM = 75.0  # the tank's half size: walls at +-75 mm
+FD_STEP = 1e-3  # coefficient perturbation for the sensitivities, in units of the term's scale
+MIN_TRAIN_WINDOWS = 300
+MIN_TEST_WINDOWS = 60
+CHOICE_TOLERANCE = 0.2  # sparsest form keeping 80 % of the best held-out gain
+MAX_TERMS = 12  # a form with more terms is not an explanation
+COLLINEAR = 1e-3  # a term whose part outside the chosen ones is below this share of it ends the selection
+
+
+@dataclass(frozen=True)
+class Term:
+    """A candidate force term: ``coef * feature(p, v, u)`` along ``axis`` (0, 1, 2).
+
+    ``expr`` is the feature as a numpy expression in the names of :func:`_namespace`
+    (also written into the effect file), ``words`` its reading, ``unit`` the feature's unit.
+    """
+
+    key: str
+    expr: str
+    words: str
+    unit: str
+    axis: int
+
+    @property
+    def name(self) -> str:
+        return f"f{AXES[self.axis]}_{self.key}"
+
+
+def _library() -> list[Term]:
+    pos = {"x": "x", "y": "y", "z": "z"}
+    vel = {"vx": "vx", "vy": "vy", "vz": "vz"}
+    cmd = {"ux": "ux", "uy": "uy", "uz": "uz"}
+    quad = {"xx": "x * x", "yy": "y * y", "zz": "z * z", "xy": "x * y", "xz": "x * z", "yz": "y * z"}
+    terms = []
+    for a in range(3):
+        c = AXES[a]
+        if c != "z":  # a vertical constant is the model's own weight F_vs
+            terms.append(Term("1", "one", "a constant", "1", a))
+        terms += [Term(k, e, k, "mm", a) for k, e in pos.items()]
+        # v_a and u_a along a are the model's own drag and thrust: their columns would only trade off with them
+        terms += [Term(k, e, f"v_{k[1]}", "mm/s", a) for k, e in vel.items() if k[1] != c]
+        terms += [Term(k, e, f"u_{k[1]}", "Hz", a) for k, e in cmd.items() if k[1] != c]
+        terms += [Term(k, e, e.replace(" * ", ""), "mm^2", a) for k, e in quad.items()]
+        terms.append(Term(f"speed_v{c}", f"speed * v{c}", f"|v| v_{c}", "mm^2/s^2", a))
+        terms.append(Term(f"spin_u{c}", f"spin * u{c}", f"|u| u_{c}", "Hz^2", a))
+        terms += [Term(f"{b}_u{c}", f"{b} * u{c}", f"{b} u_{c}", "mm Hz", a) for b in "xyz"]
+        terms += [Term(f"v{c}_wall{ell}", f"v{c} * np.exp(-wall / {ell}.0)", f"v_{c} exp(-d/{ell} mm)", "mm/s", a)
+                  for ell in (3, 10)]
+    return terms
+
+
+TERMS = _library()
+
+
+def _namespace(p, v, u) -> dict:
+    x, y, z = p.T
+    vx, vy, vz = v.T
+    ux, uy, uz = u.T
+    return {"np": np, "x": x, "y": y, "z": z, "vx": vx, "vy": vy, "vz": vz, "ux": ux, "uy": uy, "uz": uz,
+            "one": np.ones(len(p)), "speed": np.linalg.norm(v, axis=1), "spin": np.linalg.norm(u, axis=1),
+            "wall": np.maximum(WALL_MM - np.max(np.abs(p), axis=1), 0.0)}
+
+
+def term_force(terms, coefs, p, v, u) -> np.ndarray:
+    """(n, 3) force [uN] of ``terms`` with coefficients ``coefs`` at p, v, u (n, 3)."""
+    ns = _namespace(p, v, u)
+    f = np.zeros_like(p, dtype=float)
+    for t, c in zip(terms, coefs):
+        if c != 0.0:
+            f[:, t.axis] += c * eval(t.expr, ns)  # noqa: S307 (expressions of this module's own table)
+    return f
+
+
+def library_effect(terms, scales, name: str = "discovered", coefs=None) -> Effect:
+    """An :class:`Effect` whose parameters are the coefficients of ``terms`` (typical sizes ``scales``)."""
+    coefs = np.zeros(len(terms)) if coefs is None else np.asarray(coefs, dtype=float)
+    params = tuple(Param(t.name, float(c), unit=_coef_unit(t), scale=float(s)) for t, c, s in zip(terms, coefs, scales))
+
+    def force(p, v, u, prm):
+        return term_force(terms, [prm[t.name] for t in terms], p, v, u)
+
+    return Effect(name=name, params=params, force=force, doc="a sparse combination of candidate force terms")
+
+
+def _coef_unit(t: Term) -> str:
+    return "uN" if t.unit == "1" else f"uN/({t.unit})"
+
+
+# ---------------------------------------------------------------- the regression
+
+
+def discover(reference, ttr, fit_starts, fit_len, tte, test_starts, fit_fn, say=None) -> dict:
+    """Sparse residual-force regression on top of ``reference`` (a fitted JointModel).
+
+    ``fit_fn(effect) -> (_Fitted, summary, ev)`` refits the reference with an effect and evaluates it
+    on the held-out data (the diagnosis's own refit). Returns a dict with ``status`` ("found",
+    "none", "too_short"), ``explanation`` (a sentence), and when found ``terms``, ``params``,
+    ``words``, ``source`` (the effect file) and the refit's ``fitted``/``summary``/``ev``.
+    """
+    from cosim_plugins.identify.joint import JointModel
+
+    say = say or (lambda m: None)
+    test_win = tte.window_starts(fit_len, 0.7 * float(np.mean(tte.measured)))
+    if len(fit_starts) < MIN_TRAIN_WINDOWS or len(test_win) < MIN_TEST_WINDOWS:
+        return {"status": "too_short",
+                "explanation": f"the logs are too short to discover the form of a missing effect: "
+                               f"{len(fit_starts)} training and {len(test_win)} held-out windows of "
+                               f"{fit_len * ttr.dt_s:g} s (need {MIN_TRAIN_WINDOWS} and {MIN_TEST_WINDOWS}); "
+                               "give longer logs (a few minutes in all)"}
+    test_win = test_win[:: max(1, len(test_win) // 400)]
+    scales = _term_scales(ttr, fit_starts, fit_len)
+    lib = library_effect(TERMS, scales, name="_library")
+    base_host = type(reference.host)(**reference.host.options)
+    base_host.dt_s = reference.dt_s
+    jm = JointModel(base_host, [*reference.effects, lib], base_params=reference.params())
+    n_terms = len(TERMS)
+    host_idx = [i for i, n in enumerate(jm.names) if "." not in n]
+    term_idx = [jm.names.index(f"_library.{t.name}") for t in TERMS]
+    say(f"discover: sensitivities of {n_terms} candidate terms on {len(fit_starts)} + {len(test_win)} windows")
+    r_tr, J_tr, H_tr = _sensitivities(jm, ttr, fit_starts, fit_len, term_idx, host_idx)
+    r_te, J_te, H_te = _sensitivities(jm, tte, test_win, fit_len, term_idx, host_idx)
+    # the host's own parameters stay free: project their columns out of the training problem
+    Q, _ = np.linalg.qr(H_tr)
+    Jp = J_tr - Q @ (Q.T @ J_tr)
+    rp = r_tr - Q @ (Q.T @ r_tr)
+    norms = np.linalg.norm(Jp, axis=0)
+    keep = norms > 1e-6 * max(norms.max(), 1e-300)
+    cols = np.flatnonzero(keep)
+    base_err = _rms(r_te)
+    path = [(0, base_err, np.zeros(n_terms))]
+    for sel, coef in forward_selection(Jp[:, cols], rp, MAX_TERMS):
+        xi = np.zeros(n_terms)
+        xi[cols[sel]] = coef
+        eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]  # host adjustment for these terms
+        path.append((len(sel), _rms(r_te - J_te @ xi - H_te @ eta), xi))
+    best_err = min(e for _, e, _ in path)
+    # the held-out windows' error is mostly camera noise: compare gains, not errors
+    enough = best_err + CHOICE_TOLERANCE * (base_err - best_err)
+    n_sel, err_sel, xi = min((p for p in path if p[1] <= enough), key=lambda p: (p[0], p[1]))
+    eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]
+    t = paired_t({"valid": np.ones(len(test_win), bool), "err": r_te.reshape(len(test_win), -1)},
+                 {"valid": np.ones(len(test_win), bool), "err": (r_te - J_te @ xi - H_te @ eta).reshape(len(test_win), -1)},
+                 test_win, max(1, int(round(BLOCK_S / ttr.dt_s))))
+    say(f"discover: {n_sel} terms chosen on held-out windows (linearised rms {base_err:.4f} -> {err_sel:.4f} mm, "
+        f"t = {t:.1f})")
+    if n_sel == 0 or err_sel >= base_err or t < MIN_T:
+        return {"status": "none", "explanation": "no combination of the candidate terms lowers the held-out "
+                "error significantly: what is left looks like noise, or a form the candidates cannot express "
+                "(a time-varying disturbance, a delay)", "path": [[n, e] for n, e, _ in path]}
+    chosen = [i for i in range(n_terms) if xi[i] != 0.0]
+    terms = [TERMS[i] for i in chosen]
+    effect = library_effect(terms, scales[chosen], coefs=xi[chosen])
+    fitted, summary, ev = fit_fn(effect)
+    coefs = {t.name: fitted.params[f"discovered.{t.name}"]["value"] for t in terms}
+    words = describe(terms, coefs, scales[chosen], fitted.model.prm)
+    return {"status": "found", "terms": [t.name for t in terms], "expressions": {t.name: t.expr for t in terms},
+            "params": fitted.params, "words": words, "source": effect_source(terms, coefs, scales[chosen], words),
+            "path": [[n, e] for n, e, _ in path], "fitted": fitted, "summary": summary, "ev": ev}
+
+
+def _rms(r: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+
+
+def forward_selection(X: np.ndarray, y: np.ndarray, max_terms: int):
+    """Forward orthogonal least squares: the terms chosen one at a time, each step's least-squares fit.
+
+    ``X`` (N, M) candidate columns, ``y`` (N,) target. Each step takes the
+    column whose part orthogonal to the columns chosen so far explains most of
+    what ``y`` still leaves (pysindy's ``FROLS``, forward regression orthogonal
+    least squares), then refits ``y`` on all chosen columns. The columns are
+    scaled to unit norm first and the problem is reduced to its (M, M)
+    triangular factor (``X = Q R``: same projections, same order of choice, in
+    a fraction of the time). Yields ``(chosen (k,) column indices, coefficients
+    (k,))`` for k = 1 .. ``max_terms`` (fewer when the columns run out).
+    """
+    from pysindy.optimizers import FROLS
+
+    norms = np.linalg.norm(X, axis=0)
+    q, r = np.linalg.qr(X / np.where(norms > 0, norms, 1.0))
+    opt = FROLS(max_iter=min(max_terms, X.shape[1]), alpha=1e-12, normalize_columns=False)
+    with warnings.catch_warnings():  # FROLS warns when it stops early; the path so far is what is wanted
+        warnings.simplefilter("ignore")
+        opt.fit(r, (q.T @ y)[:, None])
+    seen: list[int] = []
+    for coef in opt.history_[1:]:  # history_[k]: the fit with k terms (history_[0] has none)
+        support = np.flatnonzero(np.asarray(coef).reshape(-1))
+        new = [int(j) for j in support if j not in seen]
+        if len(new) != 1 or (seen and _outside_share(r[:, seen], r[:, new[0]]) < COLLINEAR):
+            return  # no further column, or one the chosen ones (nearly) span: its coefficients would be arbitrary
+        seen += new
+        chosen = np.array(seen)
+        yield chosen, np.linalg.lstsq(X[:, chosen], y, rcond=None)[0]
+
+
+def _outside_share(A: np.ndarray, b: np.ndarray) -> float:
+    """Share of ``b``'s norm outside the span of the columns of ``A``."""
+    left = b - A @ np.linalg.lstsq(A, b, rcond=None)[0]
+    return float(np.linalg.norm(left) / max(np.linalg.norm(b), 1e-300))
+
+
+def _term_scales(tl, starts, length) -> np.ndarray:
+    """(M,) coefficient scales: the force of each term at the data's typical feature size is ~0.1 uN."""
+    rows = (starts[:, None] + np.arange(length)[None, :]).reshape(-1)
+    x = tl.x_lin[rows]
+    u = np.nan_to_num(tl.u[rows])
+    ns = _namespace(x[:, :3], x[:, 3:], u)
+    rms = np.array([float(np.sqrt(np.mean(np.asarray(eval(t.expr, ns), dtype=float) ** 2)))  # noqa: S307
+                    for t in TERMS])
+    return 0.1 / np.maximum(rms, 1e-9)
+
+
+def _sensitivities(jm, tl, starts, length, term_idx, host_idx):
+    """(r (N,), J (N, M), H (N, K)): measured minus predicted positions of the windows (initial states
+    eliminated) and their sensitivities to the term coefficients and the host parameters (finite differences)."""
+    from cosim_plugins.identify.joint import targets
+
+    fit_rows = np.ones((len(starts), length + 1), dtype=bool)
+    target = targets(tl, starts, length)
+    use = np.all(np.isfinite(target), axis=2)
+    theta0 = jm.theta.copy()
+    u_eff = tl.effective_commands(jm.inputs, jm.prm)
+
+    def pred(theta):
+        jm._set(theta)
+        with np.errstate(all="ignore"):
+            out, _, _ = jm.projected(tl, starts, length, fit_rows, u_eff=u_eff)
+        return np.where(use[..., None], out, 0.0).reshape(-1)
+
+    p0 = pred(theta0)
+    r = np.where(use[..., None], np.nan_to_num(target), 0.0).reshape(-1) - p0
+    scales = jm.scales()
+
+    def column(i):
+        th = theta0.copy()
+        h = FD_STEP * scales[i]
+        th[i] += h
+        return (pred(th) - p0) / h
+
+    J = np.stack([column(i) for i in term_idx], axis=1)
+    H = np.stack([column(i) for i in host_idx], axis=1)
+    jm._set(theta0)
+    return r, J, H
+
+
+# ---------------------------------------------------------------- words and the effect file
+
+
+def describe(terms, coefs: dict, scales, host_params: dict) -> list[str]:
+    """Sentences: the force along each axis, then the pattern they make (rotation, gradient, drift...)."""
+    size = {t.name: abs(coefs[t.name]) / s for t, s in zip(terms, scales)}  # force at the typical size, x10 uN
+    lines = []
+    for a in range(3):
+        mine = sorted((t for t in terms if t.axis == a), key=lambda t: -size[t.name])
+        if mine:
+            parts = [f"{coefs[t.name]:+.3g} {t.words if t.expr != 'one' else ''}".rstrip() for t in mine[:4]]
+            more = f" (and {len(mine) - 4} smaller terms)" if len(mine) > 4 else ""
+            lines.append(f"along {AXES[a]} the missing force is about {' '.join(parts)} uN{more}")
+    reading = _reading(terms, coefs, host_params)
+    if reading:
+        lines.append(reading)
+    return lines
+
+
+def _reading(terms, coefs: dict, host: dict) -> str | None:
+    """The physical pattern of the strongest linear-in-position, constant and command terms, in words."""
+    M = np.zeros((3, 3))
+    c0 = np.zeros(3)
+    G = np.zeros((3, 3))
+    for t in terms:
+        if t.key in ("x", "y", "z"):
+            M[t.axis, "xyz".index(t.key)] = coefs[t.name]
+        elif t.key == "1":
+            c0[t.axis] = coefs[t.name]
+        elif t.key.endswith(f"_u{AXES[t.axis]}") and t.key[0] in "xyz":
+            G[t.axis, "xyz".index(t.key[0])] = coefs[t.name]
+    cd1 = host.get("Cd1", 0.0)
+    k = host.get("k", 0.0)
+    A = 0.5 * (M - M.T)
+    S = 0.5 * (M + M.T)
+    rot = A[1, 0]  # f_x ~ -rot y, f_y ~ +rot x: a rotation about z
+    if abs(rot) > 0 and abs(rot) >= 2 * max(np.abs(S[:2, :2]).max(), abs(A[2, 0]), abs(A[2, 1])):
+        centre = np.round(np.array([-c0[1] / rot, c0[0] / rot]) if abs(rot) > 1e-12 else np.zeros(2)) + 0.0
+        spin = f", the water turning at about {rot / cd1:+.3g} rad/s" if cd1 > 0 else ""
+        return (f"reading: the horizontal force turns about a vertical axis through about "
+                f"({centre[0]:+.0f}, {centre[1]:+.0f}) mm (a rotation about z{spin}: a swirl of the water)")
+    if np.abs(G).max() > 0 and k > 0 and np.abs(G).max() * 40 >= 0.05 * k:
+        a, b = np.unravel_index(np.argmax(np.abs(G)), G.shape)
+        return (f"reading: the thrust along {AXES[a]} changes with {AXES[b]} by about "
+                f"{100 * G[a, b] * 10 / k:+.2g} % per 10 mm: the propulsion varies with position (a non-uniform "
+                "field)")
+    if np.abs(M[:2, 2]).max() > 2 * max(np.abs(M[:2, :2]).max(), 1e-300):
+        g = M[:2, 2]  # horizontal force per mm of height, uN/mm
+        size = float(np.hypot(*g))
+        shear = f" (about {size / cd1:.3g} mm/s per mm of height)" if cd1 > 0 else ""
+        return (f"reading: a horizontal force that grows with height, pointing along ({g[0] / size:+.2f}, "
+                f"{g[1] / size:+.2f}) in (x, y): a shear flow{shear}")
+    if np.abs(S).max() > 0 and np.abs(S).max() >= 2 * np.abs(A).max():
+        return "reading: a force field linear in position and curl-free, like a magnetic gradient or a centring force"
+    if np.abs(c0[:2]).max() > 0:
+        drift = f" (a drift of the water of about ({c0[0] / cd1:+.2g}, {c0[1] / cd1:+.2g}) mm/s)" if cd1 > 0 else ""
+        return f"reading: a steady horizontal push{drift}"
+    return None
+
+
+def effect_source(terms, coefs: dict, scales, words) -> str:
+    """An effect file registering ``discovered`` with these terms (initial values: the fitted coefficients)."""
+    lines = [
+        '"""A missing effect discovered by `cosim diagnose --discover`: a sparse combination of force terms.',
+        "",
+        *[f"{w[0].upper()}{w[1:]}." for w in words],
+        "",
+        "Rename it and edit its form (a physical law usually needs fewer parameters), then refit:",
+        "",
+        "    cosim diagnose LOGS --effects-file discovered_effect.py --add discovered --out DIR",
+        "",
+        "Units: p [mm], v [mm/s], u = omega [Hz], force [uN].",
+        '"""',
+        "",
+        "import numpy as np",
+        "",
+        "from cosim import hookimpl",
+        "from cosim_plugins.identify.effect import Effect, Param",
+        "",
+        f"TANK_HALF_MM = {WALL_MM}",
+        "",
+        "",
+        "def discovered_force(p, v, u, params):",
+        '    """(n, 3) force [uN] at p, v, u (n, 3)."""',
+        "    x, y, z = p[:, 0], p[:, 1], p[:, 2]",
+        "    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]",
+        "    ux, uy, uz = u[:, 0], u[:, 1], u[:, 2]",
+        "    one = np.ones(len(p))",
+        "    speed = np.linalg.norm(v, axis=1)",
+        "    spin = np.linalg.norm(u, axis=1)",
+        "    wall = np.maximum(TANK_HALF_MM - np.max(np.abs(p), axis=1), 0.0)  # distance to the nearest wall [mm]",
+        "    f = np.zeros_like(p, dtype=float)",
+    ]
+    del_unused = {"speed": "speed", "spin": "spin", "wall": "wall", "one": "one"}
+    used = " ".join(t.expr for t in terms)
+    lines = [ln for ln in lines if not any(ln.strip().startswith(f"{k} =") and k not in used
+                                           for k in del_unused)]
+    for t in terms:
+        lines.append(f'    f[:, {t.axis}] += params["{t.name}"] * {t.expr}  # along {AXES[t.axis]}: {t.words}')
+    lines += ["    return f", "", "", "DISCOVERED = Effect(", '    name="discovered",', "    params=("]
+    for t, s in zip(terms, scales):
+        lines.append(f'        Param("{t.name}", {coefs[t.name]!r}, unit="{_coef_unit(t)}", scale={float(s)!r}),')
+    lines += ["    ),", "    force=discovered_force,",
+              f"    doc={' '.join(words)!r},", ")", "", "", "@hookimpl", "def cosim_register_effects(register):",
+              "    register(DISCOVERED)", ""]
+    return "\n".join(lines)
+

@@ -1,0 +1,295 @@
+"""The Effect contract: a named physical term a parametric model can include.
+
+Units everywhere are the physical model's: position p [mm], velocity v
+[mm/s], command u = omega [Hz], force [uN], time [s].
+
+An effect is one of three kinds:
+
+``force``
+    ``force(p, v, u, params) -> (n, 3)`` [uN], vectorised over n samples
+    (p, v, u are (n, 3) arrays). The force is added to the model's own
+    forces and fitted jointly with them. ``params`` maps the effect's own
+    parameter names (short: ``"c"``, not ``"quadratic_drag.c"``) to floats
+    and also holds the host model's parameters by their names (for the
+    physical model: ``k, Cd0, Cd1, Cl0, Fvs, Fmax``), so an effect may reuse
+    e.g. the drag coefficient (background flow: drag acts on v - w).
+``input``
+    ``transform(u, dt_s, params) -> (n, 3)``: the command the plant actually
+    follows, from the logged command timeline u (n, 3) [Hz] of one
+    contiguous segment (no gaps), causal (row i may use rows <= i).
+``sensor``
+    ``transform(traj, dt_s, params) -> (w, L + 1, 3)``: what the camera
+    reports along predicted trajectories ``traj`` (w, L + 1, 3) [mm]
+    (row 0 is the start of each trajectory, rows are control periods apart).
+    A sensor effect that reports earlier positions (a latency) declares
+    ``lookback(params) -> steps``: the rollout then starts that many rows
+    before each window, so the transform reads a trajectory, not an
+    extrapolation, and the first rows it returns are dropped.
+
+Parameters are :class:`Param` (initial value, bounds, unit, typical scale). ``starts``
+lists further initial values ``{param: value}`` that a fit tries first (it
+keeps the one with the lowest cost), for effects whose cost is flat at
+their default start (a step-out frequency above every command).
+
+Effects are registered through the ``cosim_register_effects`` hook with
+``register(effect)``; :func:`known_effects` returns them by name,
+:func:`load_effect_files` adds a user's files, and :func:`check_effect`
+tells a valid effect from anything else with a one-line error.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from cosim.contract.errors import UserError
+
+KINDS = ("force", "input", "sensor")
+
+
+@dataclass(frozen=True)
+class Param:
+    """A fitted scalar: name, initial value, bounds, unit (for reports), and a typical magnitude.
+
+    ``scale`` is the size of a meaningful change of the parameter (the
+    optimiser works on parameter / scale); None takes a tenth of a finite
+    range, else the larger of |init| and 1e-3.
+    """
+
+    name: str
+    init: float
+    lo: float = -math.inf
+    hi: float = math.inf
+    unit: str = ""
+    scale: float | None = None
+
+    def typical(self) -> float:
+        """The scale the optimiser uses (see the class doc)."""
+        if self.scale is not None:
+            return float(self.scale)
+        if math.isfinite(self.hi - self.lo):
+            return 0.1 * (self.hi - self.lo)
+        return max(abs(self.init), 1e-3)
+
+
+@dataclass(frozen=True, eq=False)
+class Effect:
+    """A named physical effect; see the module docstring for the three kinds.
+
+    Attributes:
+        name: registry name (``"background_flow"``); also the prefix of the
+            parameter names in a model (``"background_flow.w_x"``).
+        params: the effect's parameters.
+        force: force callable (kind ``"force"``), else None.
+        kind: ``"force"``, ``"input"`` or ``"sensor"``.
+        doc: one paragraph: the physics and the form, with units.
+        transform: transform callable (kinds ``"input"`` and ``"sensor"``).
+        starts: further initial values to try, ``({param: value}, ...)``.
+        data_starts: optional ``data_starts(u, dt_s) -> [{param: value}, ...]``:
+            starts that depend on the logged commands u (n, 3) [Hz] (NaN rows
+            possible), e.g. step-out frequencies spread over the commanded band.
+        lookback: optional ``lookback(params) -> int`` (kind ``"sensor"``): rows of
+            trajectory before row 0 that the transform reads (see the module doc).
+    """
+
+    name: str
+    params: tuple[Param, ...]
+    force: Callable | None = None
+    kind: str = "force"
+    doc: str = ""
+    transform: Callable | None = None
+    starts: tuple[dict, ...] = field(default=())
+    data_starts: Callable | None = None
+    lookback: Callable | None = None
+
+    def param_names(self) -> list[str]:
+        """Fully qualified names ``effect.param`` used in models, reports and files."""
+        return [f"{self.name}.{p.name}" for p in self.params]
+
+    def qualified_starts(self, u: np.ndarray | None = None, dt_s: float | None = None) -> list[dict]:
+        """:attr:`starts` (and, given the commands u (n, 3) [Hz], :attr:`data_starts`) by qualified names."""
+        starts = list(self.starts)
+        if self.data_starts is not None and u is not None:
+            starts += list(self.data_starts(u, dt_s))
+        return [{f"{self.name}.{k}": float(v) for k, v in s.items()} for s in starts]
+
+    def summary(self) -> str:
+        """The doc's opening phrase, up to its first colon (for listings, <= 90 characters)."""
+        head = (self.doc or "").strip().split(":")[0].split(". ")[0].rstrip(".")
+        return head if len(head) <= 90 else head[:87] + "..."
+
+
+def check_effect(obj, source: str = "") -> Effect:
+    """Return ``obj`` if it follows the contract, else raise a one-line UserError.
+
+    Checks the name, the kind, the parameters (names unique, finite initial
+    values inside their bounds) and calls the force or transform once on a
+    small sample to check the shape and finiteness of the result.
+    """
+    where = f" (from {source})" if source else ""
+    name = getattr(obj, "name", None)
+    if not isinstance(name, str) or not name.isidentifier():
+        raise UserError(f"effect {obj!r}{where} has no valid name (a Python identifier)")
+    label = f"effect {name!r}{where}"
+    kind = getattr(obj, "kind", "force")
+    if kind not in KINDS:
+        raise UserError(f"{label}: kind {kind!r} is not one of {', '.join(KINDS)}")
+    params = getattr(obj, "params", None)
+    if not isinstance(params, (tuple, list)) or not all(isinstance(p, Param) for p in params):
+        raise UserError(f"{label}: params must be a tuple of cosim_plugins.identify.effect.Param")
+    names = [p.name for p in params]
+    if len(set(names)) != len(names):
+        raise UserError(f"{label}: duplicate parameter names {names}")
+    for p in params:
+        if not (math.isfinite(p.init) and p.lo <= p.init <= p.hi):
+            raise UserError(f"{label}: parameter {p.name!r} initial value {p.init} is not within [{p.lo}, {p.hi}]")
+    fn = getattr(obj, "force" if kind == "force" else "transform", None)
+    if not callable(fn):
+        what = "force(p, v, u, params)" if kind == "force" else "transform(...)"
+        raise UserError(f"{label}: a {kind} effect needs a callable {what}")
+    _try_call(obj, fn, kind, label)
+    return obj
+
+
+def _try_call(effect, fn, kind: str, label: str) -> None:
+    """Call the effect once on a small deterministic sample; shape/finiteness errors raise UserError."""
+    rng = np.random.default_rng(0)
+    prm = {"k": 0.2, "Cd0": 0.0, "Cd1": 0.08, "Cl0": 0.0, "Fvs": -0.4, "Fmax": 0.0}  # a host's parameters
+    prm.update({p.name: p.init for p in effect.params})
+    try:
+        if kind == "force":
+            n = 5
+            out = fn(rng.normal(0, 20, (n, 3)), rng.normal(0, 10, (n, 3)), rng.normal(0, 8, (n, 3)), prm)
+            want = (n, 3)
+        elif kind == "input":
+            n = 8
+            out = fn(rng.normal(0, 8, (n, 3)), 0.02, prm)
+            want = (n, 3)
+        else:
+            out = fn(np.cumsum(rng.normal(0, 0.3, (2, 6, 3)), axis=1), 0.02, prm)
+            want = (2, 6, 3)
+        out = np.asarray(out, dtype=float)
+    except Exception as exc:  # the user's code: report whatever it raised
+        raise UserError(f"{label}: calling its {'force' if kind == 'force' else 'transform'} failed: "
+                        f"{type(exc).__name__}: {exc}") from exc
+    if out.shape != want:
+        raise UserError(f"{label}: returned shape {out.shape}, expected {want}")
+    if not np.all(np.isfinite(out)):
+        raise UserError(f"{label}: returned non-finite values at its initial parameters")
+
+
+def known_effects() -> dict[str, Effect]:
+    """All registered effects by name (built-in and loaded files)."""
+    from cosim.contract.plugins import registry
+
+    return registry("effect")
+
+
+def load_effect_files(paths) -> list[str]:
+    """Load user effect files (Python files with a ``cosim_register_effects`` hook).
+
+    Returns the names of the effects the files added. A file that fails to
+    import, registers nothing new, or registers an invalid effect raises a
+    one-line UserError naming the file.
+    """
+    from cosim.contract.plugins import PluginError, load_plugin_file
+
+    added: list[str] = []
+    for path in paths or ():
+        path = Path(path)
+        before = set(_registry_or_error(path))
+        try:
+            load_plugin_file(path)
+        except PluginError:
+            raise
+        except Exception as exc:  # pluggy validation of the hook signature, etc.
+            raise UserError(f"effect file {path}: {type(exc).__name__}: {exc}") from exc
+        now = _registry_or_error(path)
+        new = [n for n in now if n not in before]
+        if not new:
+            raise UserError(f"effect file {path} registers no effect: define "
+                            "`@cosim.hookimpl def cosim_register_effects(register): register(Effect(...))`")
+        for name in new:
+            check_effect(now[name], str(path))
+        added += new
+    return added
+
+
+def _registry_or_error(path) -> dict:
+    try:
+        return known_effects()
+    except UserError as exc:
+        raise UserError(f"effect file {path}: {exc}") from exc
+    except Exception as exc:  # a hook that raised
+        raise UserError(f"effect file {path}: registering effects failed: {type(exc).__name__}: {exc}") from exc
+
+
+def resolve(names, known: dict | None = None) -> list[Effect]:
+    """Effects by name; an unknown name raises a UserError listing the known ones."""
+    known = known_effects() if known is None else known
+    out = []
+    for name in names:
+        if name not in known:
+            listing = ", ".join(sorted(known)) or "(none)"
+            raise UserError(f"unknown effect {name!r}; known effects: {listing}")
+        out.append(check_effect(known[name]))
+    return out
+
+
+def split_kinds(effects) -> tuple[list[Effect], list[Effect], list[Effect]]:
+    """(force, input, sensor) effects of a list, order kept."""
+    kinds = {k: [] for k in KINDS}
+    for e in effects:
+        kinds[getattr(e, "kind", "force")].append(e)
+    return kinds["force"], kinds["input"], kinds["sensor"]
+
+
+# ---------------------------------------------------------------- effects inside model files
+
+USER_MODULE_PREFIX = "cosim_user_plugin_"  # the module names cosim.contract.plugins.load_plugin_file gives user files
+
+
+def effect_sources(effects) -> dict[str, str]:
+    """{effect name: source text of the file that defined it} for effects loaded from users' files.
+
+    A model file keeps these so it opens where that file is not at hand (a
+    node's process, another machine); built-in effects need no source.
+    """
+    import inspect
+    import sys
+
+    out = {}
+    for e in effects:
+        fn = getattr(e, "force", None) or getattr(e, "transform", None)
+        module = sys.modules.get(getattr(fn, "__module__", "") or "")
+        if module is not None and module.__name__.startswith(USER_MODULE_PREFIX):
+            out[e.name] = inspect.getsource(module)
+    return out
+
+
+def restore_effects(names, sources: dict) -> list[Effect]:
+    """The registered effects ``names``; those not registered are loaded from ``sources`` (see
+    :func:`effect_sources`) through a file under the temporary folder named by the text's hash."""
+    import hashlib
+    import tempfile
+
+    known = known_effects()
+    for name in names:
+        if name in known or name not in sources:
+            continue
+        text = sources[name]
+        path = Path(tempfile.gettempdir()) / "cosim-effects" / f"{hashlib.sha256(text.encode()).hexdigest()[:16]}.py"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.is_file():
+            path.write_text(text)
+        load_effect_files([path])
+        known = known_effects()
+    missing = [n for n in names if n not in known]
+    if missing:
+        raise UserError(f"the model uses effects {missing} that are not registered and whose source the model "
+                        "file does not hold: load their effect file first (--effects-file)")
+    return [known[n] for n in names]

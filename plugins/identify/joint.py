@@ -1,0 +1,448 @@
+"""A model plus effects, fitted jointly on window rollouts, and its open-loop errors.
+
+:class:`JointModel` wraps a fitted host model (any :class:`~cosim_plugins.identify.model.Model`;
+effects need a parametric host with ``terms``, ``all_params``, ``set_params``
+and ``params``, like the physical model) with extra effects: force effects
+become the host's terms, input effects transform the command timeline and
+sensor effects the predicted measurements. Units: mm, mm/s, Hz, s.
+
+Rollouts are batched over windows (see :mod:`cosim_plugins.identify.timeline`).
+Each window's initial position and velocity are nuisance unknowns solved by
+a small linear least-squares step on the rollout's sensitivity to them
+(variable projection), because a measured velocity carries the camera noise
+(~7 mm/s at 0.1 mm and 20 ms):
+
+* fitting (:func:`fit_joint`): the initial state fits the whole window and
+  all parameters minimise the remaining position residuals
+  (``scipy.optimize.least_squares``), with standard errors from the
+  Jacobian at the solution;
+* evaluation (:meth:`JointModel.evaluate`): the initial state fits only a
+  lead-in of ``lead`` steps, and the open-loop error is read ``K`` steps
+  after the lead-in's last measurement, as an estimator would predict.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from cosim.contract.errors import UserError
+from cosim_plugins.identify.effect import split_kinds
+
+DV = 1.0  # velocity perturbation for the sensitivities [mm/s]
+SHORT_NFEV = 3  # evaluations of the short refinement of every start, on the screening windows
+SCREEN_EVERY = 8  # the screening windows: every 8th training window
+EE_WINDOWS = 200  # training windows the equation-error starts use
+EE_NFEV = 15  # evaluations of each equation-error fit
+DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank) [mm]
+TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
+RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
+
+
+def supports_effects(model) -> bool:
+    """True if ``model`` can take force terms and expose its parameters (the physical model can)."""
+    return all(hasattr(model, a) for a in ("terms", "all_params", "set_params", "params"))
+
+
+class JointModel:
+    """A host model with effects; parameters are the host's plus the transforms' (see module doc)."""
+
+    def __init__(self, host, effects=(), base_params: dict | None = None):
+        self.effects = list(effects)
+        forces, self.inputs, self.sensors = split_kinds(self.effects)
+        self.dt_s = host.dt_s
+        if self.effects:
+            if not supports_effects(host):
+                raise ValueError(f"model {host.name!r} cannot include effects")
+            opts = dict(host.options)
+            own = host.params()
+            host = type(host)(**opts, terms=[*host.terms, *forces])
+            host.set_params(own)
+            host.dt_s = self.dt_s
+        self.host = host
+        # a host that steps step-mean velocities exactly needs each step's previous command
+        self._held = getattr(host, "options", {}).get("hold") == "exact"
+        self.param_list = list(host.all_params()) if supports_effects(host) else []
+        for e in (*self.inputs, *self.sensors):
+            self.param_list += [replace(q, name=f"{e.name}.{q.name}") for q in e.params]
+        self.names = [q.name for q in self.param_list]
+        self.std: dict = {}  # standard errors after fit_joint
+        self.conditioning: dict = {}  # after fit_joint, see conditioning()
+        start = {q.name: q.init for q in self.param_list}
+        start.update(host.params() if supports_effects(host) else {})
+        start.update(base_params or {})
+        self._set(np.array([start[n] for n in self.names], dtype=float))
+
+    def savable(self):
+        """The host model with the force effects in it and the fitted parameters: what a model file holds.
+
+        Input and sensor effects transform the logged timelines, which a model file cannot carry: a
+        UserError names them.
+        """
+        other = [f"{e.name} ({e.kind})" for e in (*self.inputs, *self.sensors)]
+        if other:
+            raise UserError(f"cannot save {', '.join(other)} into a model file: only force effects become part "
+                            "of the model the Kalman filter and the MPC use")
+        self._set(self.theta)
+        return self.host
+
+    # ------------------------------------------------------------ parameters
+
+    def _set(self, theta: np.ndarray) -> None:
+        self.theta = np.asarray(theta, dtype=float)
+        prm = dict(zip(self.names, self.theta))
+        if supports_effects(self.host):
+            host_names = [q.name for q in self.host.all_params()]
+            self.host.set_params({n: prm[n] for n in host_names})
+        self.prm = prm
+
+    def params(self) -> dict:
+        return {n: float(t) for n, t in zip(self.names, self.theta)}
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([q.lo for q in self.param_list]), np.array([q.hi for q in self.param_list])
+
+    def scales(self) -> np.ndarray:
+        """(P,) typical magnitude of each parameter (:meth:`Param.typical`): the optimiser's units."""
+        return np.array([q.typical() for q in self.param_list])
+
+    def clip(self, theta: np.ndarray) -> np.ndarray:
+        """theta moved strictly inside the bounds (least_squares needs an interior start)."""
+        lo, hi = self.bounds()
+        span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+        return np.clip(theta, lo + 1e-9 * span, hi - 1e-9 * span)
+
+    # ------------------------------------------------------------ rollouts
+
+    def _step(self, xt, ut):
+        if hasattr(self.host, "predict_t"):
+            return self.host.predict_t(xt, ut, self.dt_s)
+        return self.host.predict(xt.T, ut.T, self.dt_s).T
+
+    def lookback(self) -> int:
+        """Rows before each window the rollouts start at: what the sensor effects read (see the effect doc)."""
+        m = 0
+        for e in self.sensors:
+            if e.lookback is not None:
+                m = max(m, int(e.lookback({q.name: self.prm[f"{e.name}.{q.name}"] for q in e.params})))
+        return m
+
+    def trajectories(self, tl, starts: np.ndarray, length: int, x0: np.ndarray, u_eff=None) -> np.ndarray:
+        """Predicted measurements (c, w, L + 1, 3) at rows ``starts`` (w,) .. + L.
+
+        The rollouts start :meth:`lookback` (m) rows earlier, from initial states x0 (c, w, 6) at rows
+        ``starts - m`` (at most back to the segment's first row, whose command the earlier rows repeat);
+        ``c`` stacks variants of the same windows (the velocity perturbations);
+        commands past a window's usable run are replaced by zeros (callers mask those rows).
+        """
+        if u_eff is None:
+            u_eff = tl.effective_commands(self.inputs, self.prm)
+        c, w = x0.shape[:2]
+        m = self.lookback()
+        rows = np.minimum(starts[:, None] + np.arange(-m, length)[None, :], tl.n - 1)
+        if m:
+            rows = np.maximum(rows, tl.segment_start[starts][:, None])
+
+        def batch(r):  # (w, m + L) rows -> (m + L, 3, c w) commands
+            return np.ascontiguousarray(np.tile(np.nan_to_num(u_eff[r]).transpose(1, 2, 0), (1, 1, c)))
+
+        Ut = batch(rows)
+        Up = batch(tl.previous[rows]) if self._held else None
+        xt = np.ascontiguousarray(x0.reshape(c * w, 6).T)
+        out = np.empty((m + length + 1, 3, c * w))
+        out[0] = xt[:3]
+        for j in range(m + length):
+            xt = self.host.predict_t(xt, Ut[j], self.dt_s, Up[j]) if self._held else self._step(xt, Ut[j])
+            out[j + 1] = xt[:3]
+        traj = out.transpose(2, 0, 1).reshape(c, w, m + length + 1, 3)
+        for effect in self.sensors:
+            prm = {q.name: self.prm[f"{effect.name}.{q.name}"] for q in effect.params}
+            traj = np.stack([effect.transform(t, tl.dt_s, prm) for t in traj])
+        return traj[:, :, m:]
+
+    def projected(self, tl, starts, length, fit_rows: np.ndarray, x0=None, passes: int = 1, u_eff=None):
+        """Rollouts with each window's initial state solved on ``fit_rows``.
+
+        Args:
+            fit_rows: (w, L + 1) bool, rows whose measurements determine the initial state.
+            x0: (w, 6) starting guesses (default ``tl.x_lin`` where the rollouts start, see :meth:`trajectories`).
+        Returns:
+            (pred (w, L + 1, 3) predicted measurements after the correction,
+             S (w, L + 1, 3, 6) sensitivity to the initial state, G (w, 6, 6) its normal matrix).
+        """
+        if x0 is None:
+            x0 = tl.x_lin[np.maximum(starts - self.lookback(), tl.segment_start[starts])]
+        x0 = x0.copy()
+        target = targets(tl, starts, length)
+        use = fit_rows & np.all(np.isfinite(target), axis=2)
+        tz = np.where(use[..., None], target, 0.0)
+        for _ in range(max(passes, 1)):
+            xs = np.stack([x0] + [x0 + DV * np.eye(6)[3 + a] for a in range(3)])
+            q = self.trajectories(tl, starts, length, xs, u_eff)
+            S = np.zeros(q.shape[1:3] + (3, 6))
+            S[..., :3] = np.eye(3)
+            S[..., 3:] = ((q[1:] - q[0]) / DV).transpose(1, 2, 3, 0)
+            q0 = np.where(np.isfinite(q[0]), q[0], 0.0)
+            S = np.where(np.isfinite(S), S, 0.0)
+            r = np.where(use[..., None], q0 - tz, 0.0)
+            w, rows = use.shape
+            Su = (S * use[..., None, None]).reshape(w, rows * 3, 6)  # batched matmul: BLAS, not einsum loops
+            SuT = Su.transpose(0, 2, 1)
+            G = SuT @ Su + RIDGE
+            d = np.linalg.solve(G, -(SuT @ r.reshape(w, rows * 3, 1)))[..., 0]
+            x0 = x0 + d
+        pred = q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape)
+        return pred, S, G
+
+    # ------------------------------------------------------------ evaluation
+
+    def evaluate(self, tl, starts: np.ndarray, lead: int, steps: dict):
+        """Open-loop errors ``steps[key]`` steps after a lead-in of ``lead`` steps.
+
+        Args:
+            starts: (w,) window start rows (the lead-in's first row).
+            steps: {horizon key: steps after the lead-in}.
+        Returns:
+            {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm]}}; a window whose
+            rollout diverged (NaN, or off by more than :data:`DIVERGED_MM`) has an error of DIVERGED_MM
+        """
+        length = lead + max(steps.values())
+        fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
+        fit_rows[:, : lead + 1] = True
+        with np.errstate(all="ignore"):  # a model that diverges shows as a huge error, not a warning
+            pred, _, _ = self.projected(tl, starts, length, fit_rows, passes=2)
+        target = targets(tl, starts, length)
+        out = {}
+        for key, k in steps.items():
+            row = lead + k
+            valid = (tl.run[starts] >= row) & np.all(np.isfinite(target[:, row]), axis=1)
+            err = np.where(valid[:, None], pred[:, row] - np.nan_to_num(target[:, row]), np.nan)
+            with np.errstate(all="ignore"):
+                diverged = valid & ~(np.linalg.norm(err, axis=1) <= DIVERGED_MM)  # NaN too
+            err[diverged] = DIVERGED_MM / math.sqrt(3.0)
+            out[key] = {"valid": valid, "err": err}
+        return out
+
+
+def targets(tl, starts: np.ndarray, length: int) -> np.ndarray:
+    """(w, L + 1, 3) measured positions of windows at ``starts``; NaN past the end of the data."""
+    rows = starts[:, None] + np.arange(length + 1)[None, :]
+    out = tl.p[np.minimum(rows, tl.n - 1)]
+    out[rows >= tl.n] = np.nan
+    return out
+
+
+def floor_draws(S, G, use, lead, steps, sigma, draws, seed) -> dict:
+    """Per-window expected error norm of a perfect model under white noise ``sigma`` (3,) [mm]."""
+    rng = np.random.default_rng(seed)
+    sigma = np.asarray(sigma, dtype=float)
+    w, rows = use.shape
+    acc = {key: np.zeros(w) for key in steps}
+    for _ in range(draws):
+        n = rng.normal(size=(w, rows, 3)) * sigma
+        nu = np.where(use[..., None], n, 0.0)
+        d = np.linalg.solve(G, np.einsum("wkai,wka->wi", S * use[..., None, None], nu)[..., None])[..., 0]
+        for key, k in steps.items():
+            row = lead + k
+            e = -n[:, row] + np.einsum("wai,wi->wa", S[:, row], d)
+            acc[key] += np.linalg.norm(e, axis=1) / draws
+    return acc
+
+
+@dataclass
+class FitResult:
+    """Outcome of :func:`fit_joint`: parameters, standard errors, costs."""
+
+    params: dict
+    std: dict
+    rms_mm: float
+    rms_start_mm: float
+    evaluations: int
+    status: int
+    start: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int = 30,
+              extra_starts=(), fresh_starts=(), progress=None, score=None) -> FitResult:
+    """Fit all parameters of ``jm`` on windows of ``length`` steps at rows ``starts``.
+
+    Starts: the current parameters; each ``extra_starts`` dict ``{name: value}``
+    applied to them; and, for continuous-time hosts, the integrated
+    equation-error fit (:mod:`cosim_plugins.identify.equation_error`) from each
+    ``fresh_starts`` dict applied to the current parameters (a start that does
+    not inherit a degenerate previous fit; the effect parameters it names,
+    ``effect.param``, are held at their values, the host's adapt). Every
+    distinct start is refined for :data:`SHORT_NFEV` evaluations (an extra
+    start holding its own values, the rest adapting to them) on every
+    :data:`SCREEN_EVERY`-th window (a start's own cost says little: in a flat
+    degenerate basin the right one can start dearer); the best of them by
+    ``score(jm)`` (lower is better; default: the screening cost) is refined
+    for up to ``max_nfev`` on all windows. The optimiser works in units of
+    each parameter's typical scale. Standard errors come
+    from the Jacobian at the solution, sigma^2 (J^T J)^-1, inflated by how
+    often each measurement enters overlapping windows;
+    ``extra["conditioning"]`` says how well the data pin the parameters down
+    (:func:`conditioning`).
+    """
+    counter = {"n": 0}
+    fixed_u = None if jm.inputs else tl.effective_commands([], {})
+
+    def objective(rows: np.ndarray):
+        """The residual function on the windows at ``rows`` (w,), and its mask of measured rows (w, L + 1)."""
+        fit_rows = np.ones((len(rows), length + 1), dtype=bool)
+        target = targets(tl, rows, length)
+        use = np.all(np.isfinite(target), axis=2)
+        target = np.nan_to_num(target)
+
+        def residual(theta):
+            counter["n"] += 1
+            jm._set(theta)
+            with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
+                pred, _, _ = jm.projected(tl, rows, length, fit_rows, u_eff=fixed_u)
+                r = np.where(use[..., None], pred - target, 0.0)
+            return np.nan_to_num(r.reshape(-1), nan=1e6, posinf=1e6, neginf=-1e6)
+
+        return residual, use
+
+    residual, use = objective(starts)
+
+    def applied(values: dict) -> np.ndarray:
+        th = jm.theta.copy()
+        for name, value in values.items():
+            th[jm.names.index(name)] = value
+        return jm.clip(th)
+
+    theta_now = jm.clip(jm.theta)
+    # (start, the names it holds during its brief refinement): an effect's listed start keeps its own values
+    # while the rest adapts to them (a lag of 0.3 s needs a faster velocity response than the fit without it)
+    candidates = [(theta_now, ())] + [(applied(extra), tuple(extra)) for extra in extra_starts]
+    if fresh_starts and supports_equation_error(jm):
+        from cosim_plugins.identify.equation_error import EquationError
+
+        sub = starts if len(starts) <= EE_WINDOWS else starts[:: int(np.ceil(len(starts) / EE_WINDOWS))]
+        ee = EquationError(jm, tl, sub, length)
+        for start in fresh_starts:
+            held = tuple(n for n in start if "." in n)  # an effect's start values stay; the host adapts to them
+            free = np.array([n not in held for n in jm.names])
+            candidates.append((jm.clip(ee.fit(applied(start), free, max_nfev=EE_NFEV)[0]), ()))
+        jm._set(theta_now)
+    lo, hi = jm.bounds()
+    scale = jm.scales()
+    candidates = _distinct(candidates, scale)
+    if len(candidates) > 1:  # every start refined briefly on a few windows, the best one goes on
+        screen, _ = objective(starts[::SCREEN_EVERY])
+        short = [_refine_held(screen, th, [jm.names.index(n) for n in held], lo, hi, scale)
+                 for th, held in candidates]
+        costs = [cost for _, cost in short]
+        if score is not None:  # e.g. the open-loop error at a longer horizon than the windows'
+
+            def scored(th):
+                jm._set(th)
+                value = float(score(jm))
+                return value if np.isfinite(value) else np.inf
+
+            costs = [scored(th) if np.isfinite(cost) else np.inf for th, cost in short]
+        best = int(np.argmin(costs))
+        start_theta = short[best][0]
+    else:
+        best, start_theta = 0, candidates[0][0]
+    r0 = residual(candidates[best][0])
+    res = least_squares(residual, start_theta, bounds=(lo, hi), x_scale=scale, method="trf",
+                        max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
+    jm._set(res.x)
+    n_used = int(use.sum()) * 3
+    rows_used = np.zeros(tl.n, dtype=bool)
+    rows_used[(starts[:, None] + np.arange(length + 1)[None, :])[use]] = True
+    std = _standard_errors(res.jac, res.fun, n_used, 3 * int(rows_used.sum()))
+    jm.std = {n: float(x) for n, x in zip(jm.names, std)}
+    jm.conditioning = conditioning(jm, res.x, res.jac)
+    if progress:
+        progress(f"fit {len(starts)} windows x {length} steps: rms {math.sqrt(np.mean(r0 ** 2) * r0.size / n_used):.3f}"
+                 f" -> {math.sqrt(2 * res.cost / n_used):.3f} mm ({counter['n']} evaluations, "
+                 f"start {best + 1} of {len(candidates)})")
+    return FitResult(params=jm.params(), std=dict(zip(jm.names, std)),
+                     rms_mm=math.sqrt(2 * res.cost / n_used), rms_start_mm=math.sqrt(float(np.sum(r0 ** 2)) / n_used),
+                     evaluations=counter["n"], status=int(res.status), start=best,
+                     extra={"conditioning": jm.conditioning})
+
+
+def _distinct(candidates: list, scale: np.ndarray) -> list:
+    """``candidates`` (theta, held names) without repeats: a start within a hundredth of every parameter's
+    scale of an earlier one with the same held names."""
+    out = []
+    for th, held in candidates:
+        if not any(h == held and np.all(np.abs(th - kept) <= 0.01 * scale) for kept, h in out):
+            out.append((th, held))
+    return out
+
+
+def _refine_held(fun, theta: np.ndarray, held: list, lo, hi, scale) -> tuple[np.ndarray, float]:
+    """:data:`SHORT_NFEV` evaluations of least squares from ``theta`` with the parameters at indices ``held``
+    kept at their values; (the refined theta, its cost, inf when not finite)."""
+    free = np.setdiff1d(np.arange(len(theta)), held)
+
+    def sub(x):
+        th = theta.copy()
+        th[free] = x
+        return fun(th)
+
+    r = least_squares(sub, theta[free], bounds=(lo[free], hi[free]), x_scale=scale[free], method="trf",
+                      max_nfev=SHORT_NFEV, ftol=1e-6, xtol=1e-7)
+    out = theta.copy()
+    out[free] = r.x
+    return out, float(r.cost) if np.isfinite(r.cost) else np.inf
+
+
+def supports_equation_error(jm) -> bool:
+    """True when the equation-error starts apply: a continuous-time host with parameters."""
+    return supports_effects(jm.host) and hasattr(jm.host, "predict_t")
+
+
+def conditioning(jm: JointModel, theta: np.ndarray, J: np.ndarray) -> dict:
+    """How well the data pin the fitted parameters down.
+
+    Returns ``{"at_bound": [names], "condition": float, "tradeoffs": [[a, b, corr]], "unseen": [names]}``:
+    parameters within 1e-6 of a scale from a finite bound; the condition number of the Jacobian in
+    scaled units; pairs whose estimates are correlated beyond :data:`TRADEOFF_CORR` (the data
+    cannot tell them apart: one can stand in for the other); parameters the residuals do not depend on.
+    """
+    J = np.asarray(J) * jm.scales()[None, :]
+    lo, hi = jm.bounds()
+    tol = 1e-6 * jm.scales()
+    at_bound = [n for n, t, a, b in zip(jm.names, theta, lo, hi) if abs(t - a) <= tol[jm.names.index(n)]
+                or abs(b - t) <= tol[jm.names.index(n)]]
+    col = np.linalg.norm(J, axis=0)
+    seen = col > 1e-9 * max(float(col.max()), 1e-300)
+    unseen = [n for n, ok in zip(jm.names, seen) if not ok]
+    Js = J[:, seen] / col[seen]
+    sv = np.linalg.svd(Js, compute_uv=False) if Js.size else np.ones(1)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+    cov = np.linalg.pinv(Js.T @ Js)
+    d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+    corr = cov / np.outer(d, d)
+    names = [n for n, ok in zip(jm.names, seen) if ok]
+    pairs = [[names[i], names[j], float(corr[i, j])] for i in range(len(names)) for j in range(i + 1, len(names))
+             if abs(corr[i, j]) >= TRADEOFF_CORR]
+    pairs.sort(key=lambda x: -abs(x[2]))
+    return {"at_bound": at_bound, "condition": cond, "tradeoffs": pairs, "unseen": unseen}
+
+
+def _standard_errors(J, r, n_used: int, n_distinct: int) -> np.ndarray:
+    """sqrt(diag(s^2 (J^T J)^+)) with s^2 = |r|^2 / (n - P), times the overlap inflation n_used / n_distinct.
+
+    NaN for a parameter the residuals do not depend on (e.g. a step-out frequency above every command).
+    """
+    J = np.asarray(J)
+    p = J.shape[1]
+    s2 = float(r @ r) / max(n_used - p, 1)
+    JTJ = J.T @ J
+    scale = np.sqrt(np.maximum(np.diag(JTJ), 1e-300))
+    cov = np.linalg.pinv(JTJ / np.outer(scale, scale)) / np.outer(scale, scale)
+    inflation = max(n_used / max(n_distinct, 1), 1.0)
+    std = np.sqrt(np.maximum(np.diag(cov), 0.0) * s2 * inflation)
+    std[np.diag(JTJ) <= 1e-12 * max(float(np.max(np.diag(JTJ))), 1e-300)] = np.nan  # the data do not see it
+    return std

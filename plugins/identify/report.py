@@ -1,0 +1,248 @@
+"""Files of a diagnosis: diagnosis.json, report.md with PNG plots, diagnosis.rrd.
+
+Plots (matplotlib, Agg):
+
+* ``error_over_time.png``: the baseline's open-loop error at the reference
+  horizon over each log's time (and the model with ``--add`` effects);
+* ``error_by_condition.png``: mean error per quantile bin of every
+  localisation feature (where, when, conditions), eta^2 in the titles;
+* ``ranking.png``: held-out error at the reference horizon per candidate;
+* ``before_after.png``: held-out error against the horizon, before and
+  after the best (or added) effect, with the noise floor.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from cosim_plugins.identify.fit import json_default
+from cosim_plugins.identify.localise import FEATURES
+from cosim_plugins.identify.wording import legend, params_text
+
+MAX_LOG_PLOTS = 6
+
+
+def write_outputs(diag, out_dir) -> list[Path]:
+    """Write every output file of ``diag`` (a :class:`~cosim_plugins.identify.diagnose.Diagnosis`) into ``out_dir``."""
+    from cosim_plugins.identify.diagnose_rrd import write_recording
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = [out / "diagnosis.json"]
+    files[0].write_text(json.dumps(diag.result, indent=2, default=json_default) + "\n")
+    files += write_plots(diag, out)
+    if diag.discovered_source:
+        files.append(out / diag.result["discovered"]["file"])
+        files[-1].write_text(diag.discovered_source)
+    files.append(write_report(diag, out, [f.name for f in files if f.suffix == ".png"]))
+    files.append(write_recording(diag, out / "diagnosis.rrd"))
+    return files
+
+
+# ---------------------------------------------------------------- plots
+
+
+def write_plots(diag, out: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+    for name, draw in (("error_over_time.png", _plot_time), ("error_by_condition.png", _plot_features),
+                       ("ranking.png", _plot_ranking), ("before_after.png", _plot_before_after)):
+        fig = draw(diag, plt)
+        if fig is not None:
+            fig.savefig(out / name, dpi=90)
+            plt.close(fig)
+            files.append(out / name)
+    return files
+
+
+def target_times(diag) -> tuple[np.ndarray, np.ndarray]:
+    """(log index, time [s]) of each evaluation window's target row at the reference horizon."""
+    k = diag.steps[_ref_key(diag)]
+    rows = np.minimum(diag.starts + diag.lead + k, diag.timeline.n - 1)
+    return diag.timeline.log[diag.starts], diag.timeline.t_s[rows]
+
+
+def log_label(path: str) -> str:
+    """A log's name that tells logs apart: ``runs/003_case=tilted/log.csv`` -> ``003_case=tilted/log.csv``."""
+    p = Path(path)
+    return f"{p.parent.name}/{p.name}" if p.parent.name else p.name
+
+
+def _ref_key(diag) -> str:
+    ref = diag.result["reference_horizon_s"]
+    return next(k for k, v in diag.result["horizons_s"].items() if v == ref)
+
+
+def _plot_time(diag, plt):
+    logs, t = target_times(diag)
+    ids = [k for k in np.unique(logs) if k >= 0][:MAX_LOG_PLOTS]
+    if not ids:
+        return None
+    fig, axes = plt.subplots(len(ids), 1, figsize=(9, 1.9 * len(ids) + 0.6), sharex=True, squeeze=False)
+    floor = diag.result["noise_floor_mm"]
+    for ax, k in zip(axes[:, 0], ids):
+        sel = logs == k
+        for label, err, color in ((f"{diag.result['baseline']['model']} (baseline)", diag.errors["baseline"], "tab:red"),
+                                  (diag.errors.get("after_label"), diag.errors.get("after"), "tab:blue")):
+            if err is not None:
+                ax.plot(t[sel], np.linalg.norm(err[sel], axis=1), ".", ms=2, color=color, label=label)
+        if floor:
+            ax.axhline(floor, color="k", lw=0.8, ls="--", label="noise floor")
+        ax.set_ylabel("error [mm]")
+        ax.set_title(log_label(diag.result["logs"][k]), fontsize=8, loc="left")
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time in log [s]")
+    fig.suptitle(f"open-loop prediction error at {diag.result['reference_horizon_s']:g} s over time, each log "
+                 "(all windows: training and held-out)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _plot_features(diag, plt):
+    bins = diag.result["localisation"]["bins"]
+    names = [n for n in FEATURES if n in bins]
+    if not names:
+        return None
+    cols = 4
+    rows = (len(names) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(12, 2.5 * rows), squeeze=False)
+    overall = diag.result["localisation"]["mean_mm"]
+    for ax, name in zip(axes.flat, names):
+        b = bins[name]
+        edges = np.asarray(b["edges"])
+        ax.bar(0.5 * (edges[:-1] + edges[1:]), b["mean_mm"], width=np.diff(edges) * 0.9, color="tab:orange")
+        ax.axhline(overall, color="k", lw=0.8, ls="--")
+        unit, words = FEATURES[name]
+        ax.set_title(f"{name} (eta^2 {b['eta2']:.2f})", fontsize=8)
+        ax.set_xlabel(f"{words} [{unit}]" if unit else f"{words} [-]", fontsize=7)
+        ax.set_ylabel(f"mean error at {diag.result['reference_horizon_s']:g} s [mm]", fontsize=7)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[len(names):]:
+        ax.axis("off")
+    fig.suptitle(f"error of {diag.result['localisation']['model']} by region, time and condition (dashed: mean)",
+                 fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _plot_ranking(diag, plt):
+    r = diag.result
+    key = _ref_key(diag)
+    ref = r["reference"] or r["baseline"]
+    labels = ["(reference)"] + [e["effect"] for e in r["ranking"]]
+    values = [ref["rollout_mm"][key]] + [e["rollout_mm"][key] for e in r["ranking"]]
+    fig, ax = plt.subplots(figsize=(7, 0.35 * len(labels) + 1.2))
+    colors = ["tab:gray"] + ["tab:green" if e["effect"] == r["verdict"]["effect"] else "tab:blue"
+                             for e in r["ranking"]]
+    ax.barh(labels[::-1], values[::-1], color=colors[::-1])
+    if r["noise_floor_mm"]:
+        ax.axvline(r["noise_floor_mm"], color="k", ls="--", lw=0.8, label="noise floor")
+        ax.legend(fontsize=7)
+    ax.set_xlabel(f"held-out error at {r['reference_horizon_s']:g} s [mm]")
+    ax.set_ylabel("model refitted with")
+    ax.set_title("candidate effects ranked (green: the one the verdict names)", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def _plot_before_after(diag, plt):
+    fig, ax = plt.subplots(figsize=(6, 4))
+    hs = diag.result["horizons_s"]
+    for label, curve in diag.curves.items():
+        keys = [k for k in hs if curve.get(k) is not None]
+        style = "k--" if label == "noise floor" else "o-"
+        ax.plot([hs[k] for k in keys], [curve[k] for k in keys], style, label=label)
+    ax.set_xlabel("prediction horizon [s]")
+    ax.set_ylabel("held-out open-loop error [mm]")
+    ax.set_title("held-out error by horizon, before and after", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+# ---------------------------------------------------------------- markdown
+
+
+def write_report(diag, out: Path, pngs: list[str]) -> Path:
+    r = diag.result
+    key = _ref_key(diag)
+    hs = list(r["horizons_s"])
+    lines = ["# Model discrepancy diagnosis", "",
+             f"**Verdict:** {r['verdict']['explanation']}", "",
+             f"Logs: {len(r['logs'])} ({', '.join(r['logs'][:6])}{', ...' if len(r['logs']) > 6 else ''}); "
+             f"held-out: {_split_text(r['split'])}; lead-in {r['lead_in_s']:g} s; reference horizon "
+             f"{r['reference_horizon_s']:g} s.", "",
+             "## Error and noise floor", "",
+             "Camera noise estimated from the data (third differences): "
+             + (", ".join(f"{a} {v:.3f}" for a, v in r["noise"]["sigma_mm"].items()) + " mm."
+                if r["noise"]["sigma_mm"] else "not enough consecutive measurements."), "",
+             "| horizon [s] | " + " | ".join(hs) + " |", "|---" * (len(hs) + 1) + "|",
+             f"| {r['baseline']['model']} error [mm] | " + " | ".join(_f(r["baseline"]["rollout_mm"][h]) for h in hs)
+             + " |",
+             "| noise floor [mm] | " + " | ".join(_f(r["noise"]["floor_mm"][h]) for h in hs) + " |"]
+    if r["reference"] and not r["added"]:
+        lines.append(f"| {r['reference']['model']} (reference for the effects) [mm] | "
+                     + " | ".join(_f(r["reference"]["rollout_mm"][h]) for h in hs) + " |")
+    if r["added"]:
+        a = r["added"]
+        lines += [f"| + {' + '.join(a['effects'])} [mm] | " + " | ".join(_f(a["rollout_mm"][h]) for h in hs) + " |",
+                  "| reduction | " + " | ".join(f"{a['reduction'][h]:.0%}" for h in hs) + " |", "",
+                  "Added effect parameters: " + params_text(a["params"]) + "."]
+    lines += ["", "## Ranking of candidate effects (joint refit, held-out error)", "",
+              f"| rank | effect | kind | error at {r['reference_horizon_s']:g} s [mm] | reduction | t | parameters |",
+              "|---|---|---|---|---|---|---|"]
+    for i, e in enumerate(r["ranking"], 1):
+        if not e.get("identifiable", True):
+            lines.append(f"| - | {e['effect']} | {e['kind']} | not identifiable from these logs | | | |")
+            continue
+        lines.append(f"| {i} | {e['effect']} | {e['kind']} | {_f(e['rollout_mm'][key])} | {e['reduction']:+.1%} "
+                     f"| {e['t_stat']:.1f} | {params_text(e['params'])} |")
+    if r.get("fit_notes"):
+        lines += ["", "Notes on the fits:", ""] + [f"- {n}" for n in r["fit_notes"]]
+    found = r.get("discovered")
+    if found:
+        lines += ["", "## The form of what is missing (sparse regression of the residual force)", ""]
+        if found["status"] == "found":
+            lines += [f"- {w}" for w in found["words"]]
+            lines += ["", f"Refitted with these {len(found['terms'])} terms, the held-out error at "
+                          f"{r['reference_horizon_s']:g} s falls by {found['reduction']:.0%} "
+                          f"(t = {found['t_stat']:.1f}). The effect file `{found['file']}` holds them: rename it, "
+                          f"edit its form and refit with `--effects-file {found['file']} --add discovered`."]
+        else:
+            lines.append(found["explanation"] + ".")
+    loc = r["localisation"]
+    lines += ["", "## Where, when and under which conditions the error concentrates", "",
+              f"Error of {loc['model']} at {r['reference_horizon_s']:g} s on {loc['windows']} windows of all logs "
+              f"(mean {loc['mean_mm']:.2f} mm). Strongest clues:", ""]
+    lines += [f"- {c}" for c in loc["clues"]] or ["- none stand out"]
+    lines += ["", "| group | features, strongest first (eta^2) |", "|---|---|"]
+    for g, names in loc["groups"].items():
+        lines.append(f"| {g} | " + ", ".join(f"{n} ({loc['bins'][n]['eta2']:.2f})" for n in names) + " |")
+    lines += ["", "## How to read this report", ""]
+    lines += [f"- **{line.split(':', 1)[0]}**:{line.split(':', 1)[1]}" for line in
+              legend(("held-out error", "noise floor", "reduction", "t", "eta^2", "mean error vector", "value ± std"))]
+    lines += ["", "## Figures", ""] + [f"![{p[:-4]}]({p})" for p in pngs]
+    lines += ["", "The recording `diagnosis.rrd` shows the measured trajectory coloured by the error "
+              "(`rerun diagnosis.rrd`).", ""]
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def _split_text(split: dict) -> str:
+    if split["kind"] == "validate":
+        return f"{split['validate_logs']} --validate log(s)"
+    return f"every third {split['block_s']:g} s block of each log"
+
+
+def _f(v) -> str:
+    return "-" if v is None else f"{v:.3f}"
+

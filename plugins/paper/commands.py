@@ -1,0 +1,68 @@
+"""``cosim dataset`` and ``cosim reproduce``: the paper's dataset and its experiments, regenerated."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from cosim.cli.commands import add_jobs_argument, parse_jobs
+from cosim.contract.errors import UserError
+
+
+def add_commands(sub) -> None:
+    add_dataset_command(sub)
+    add_reproduce_command(sub)
+
+
+def add_dataset_command(sub) -> None:
+    p = sub.add_parser("dataset", help="generate (or reuse) the paper's training, test and validation logs")
+    p.add_argument("--quick", action="store_true", help="40 s runs instead of 290 s each")
+    p.add_argument("--out", type=Path, default=None, help="folder (default: the cache, $COSIM_CACHE or ./cache)")
+    p.add_argument("--force", action="store_true", help="regenerate even if the cache is current")
+    p.add_argument("--profile", default="ideal", help="run the scenarios on this profile (ideal, lab, ...); "
+                   "its logs are cached apart, and models named by kind in a scenario on it train on them")
+    add_jobs_argument(p, "runs at a time, each in a worker process")
+    p.set_defaults(func=cmd_dataset)
+
+
+def cmd_dataset(args) -> int:
+    from cosim_plugins.paper.dataset import ensure_dataset
+
+    ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force, jobs=parse_jobs(args.jobs),
+                        profile=args.profile)
+    for split in ("training", "test", "validation"):
+        files = getattr(ds, split)
+        print(f"{split} ({len(files)} logs):")
+        for f in files:
+            print(f"  {f}")
+    return 0
+
+
+def add_reproduce_command(sub) -> None:
+    p = sub.add_parser("reproduce", help="regenerate every table and figure of the paper in simulation")
+    p.add_argument("--out", type=Path, required=True, help="report folder")
+    p.add_argument("--quick", action="store_true", help="shortened experiments (a few minutes in all)")
+    p.add_argument("--readme", type=Path, default=None, metavar="README.md",
+                   help="also put the tables into this README's results block (plots go to docs/results/)")
+    add_jobs_argument(p, "each sweep's runs at a time, each in a worker process")
+    p.set_defaults(func=cmd_reproduce)
+
+
+def cmd_reproduce(args) -> int:
+    from cosim_plugins.paper.report_format import filled
+    from cosim_plugins.paper.reproduce import reproduce
+
+    if args.readme and not args.readme.is_file():
+        raise UserError(f"--readme {args.readme} does not exist")
+
+    report = reproduce(args.out, quick=args.quick, jobs=parse_jobs(args.jobs))
+    print(f"report: {args.out / 'report.md'} (and report.html, report.json); {report['wall_time_s']:.0f} s")
+    empty = filled((args.out / "report.md").read_text())
+    if empty:
+        print(f"warning: {len(empty)} table rows have missing figures", file=sys.stderr)
+    if args.readme:
+        from cosim_plugins.paper.reproduce import update_readme
+
+        update_readme(args.out, args.readme, args.readme.parent / "docs" / "results")
+        print(f"updated the results in {args.readme}")
+    return 0
