@@ -13,8 +13,10 @@ applied over ``[t_prev, t)``, so the component sets them and integrates the
 FMU from its previous time to ``t``. A call that returns an error status, or
 during which the FMU logs a message at error status or above, raises a
 :class:`~cosim.contract.component.ComponentError` with the FMU's messages.
-The hot path calls the FMI functions directly on preallocated buffers: one
-``fmi2SetReal``, one ``fmi2DoStep`` and one ``fmi2GetReal`` per step.
+The hot path calls the FMI functions of the FMU's library directly (the
+ctypes functions fmpy configured, without its per-call wrapper) on
+preallocated buffers: one ``fmi2SetReal``, one ``fmi2DoStep`` and one
+``fmi2GetReal`` per step.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ from cosim.contract.component import Component, ComponentError
 
 #: fmi2Error: a message logged at this status or above fails the call that logged it
 ERROR_STATUS = 3
+#: fmi2Warning: a call that returns a status above it failed
+WARNING_STATUS = 1
 #: parameters the component takes itself (not FMU variables)
 OPTIONS = ("fmu", "dt")
 
@@ -111,6 +115,9 @@ class FmuComponent(Component):
         self._out_buf = (fmi2Real * len(out_names))()
         self._out_np = np.ctypeslib.as_array(self._out_buf) if out_names else np.zeros(0)
         self._out_index = list(_port_slices(self.output_variables).items())
+        dll = self._fmu.dll  # the functions fmpy configured (argument and result types)
+        self._set_real, self._do_step_c, self._get_real = (getattr(dll, f) for f in
+                                                           ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"))
         self._t = 0.0
         self._last = self._read_outputs()
 
@@ -166,15 +173,14 @@ class FmuComponent(Component):
         return self._last
 
     def _do_step(self, t: float) -> None:
-        fmu = self._fmu
+        component = self._fmu.component
         if len(self._in_buf):
-            fmu.fmi2SetReal(fmu.component, self._in_vr, len(self._in_buf), self._in_buf)
-        fmu.fmi2DoStep(fmu.component, self._t, t - self._t, 1)
+            _check("fmi2SetReal", self._set_real(component, self._in_vr, len(self._in_buf), self._in_buf))
+        _check("fmi2DoStep", self._do_step_c(component, self._t, t - self._t, 1))
 
     def _read_outputs(self) -> dict[str, np.ndarray]:
-        fmu = self._fmu
         if len(self._out_buf):
-            fmu.fmi2GetReal(fmu.component, self._out_vr, len(self._out_buf), self._out_buf)
+            _check("fmi2GetReal", self._get_real(self._fmu.component, self._out_vr, len(self._out_buf), self._out_buf))
         values = self._out_np.copy()  # one fresh array per step; the ports are views into it
         return {port: values[index] for port, index in self._out_index}
 
@@ -213,6 +219,11 @@ class FmuComponent(Component):
         if self._unzip_dir is not None:
             shutil.rmtree(self._unzip_dir, ignore_errors=True)
             self._unzip_dir = None
+
+
+def _check(function: str, status: int) -> None:
+    if status > WARNING_STATUS:
+        raise FMICallException(function=function, status=status)
 
 
 def _vr_array(vrs: list[int]) -> ctypes.Array:

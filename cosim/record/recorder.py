@@ -43,7 +43,11 @@ class TraceRecorder:
         self.scenario, self.wiring, self.out_dir, self.path = scenario, wiring, Path(out_dir), path
         n = scenario.n_steps
         self.t_s = np.arange(n) * scenario.dt_s
-        self.arrays = {(c, p.name): np.full((n, *p.shape), np.nan) for c in wiring.order for p in wiring.outputs[c]}
+        #: per component, every output at every tick: (n, width) float64, the ports laid end to end
+        self.rows = {c: np.full((n, sum(int(np.prod(p.shape)) for p in ports)), np.nan)
+                     for c in wiring.order if (ports := wiring.outputs[c])}
+        #: every port's (n, *shape) view into its component's rows, by (component, port)
+        self.arrays = {key: view for c in self.rows for key, view in _port_views(c, wiring.outputs[c], self.rows[c])}
         self.ticks = 0  # ticks recorded
         self.written = 0  # ticks written to the log and the trace
         self.drawn = 0  # ticks written to the recording
@@ -80,11 +84,13 @@ class TraceRecorder:
         self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self, views, self.views)
         self.files["recording"] = self.out_dir / "recording.rrd"
 
-    def on_tick(self, tick: int, t: float, values) -> None:
+    def on_tick(self, tick: int, t: float, rows: dict[str, np.ndarray]) -> None:
+        """``rows``: each component's outputs at ``tick`` (flat, the ports laid end to end); a
+        component missing from it (its step failed) stays NaN."""
         if self.closed:
             return
-        for key, value in values.items():
-            self.arrays[key][tick] = value
+        for comp, row in rows.items():
+            self.rows[comp][tick] = row
         self.ticks = tick + 1
         if time.monotonic() - self._last_write >= FLUSH_EVERY_S:
             self.write_out(recording=True)
@@ -111,8 +117,8 @@ class TraceRecorder:
             t_s = self.t_s[start:stop]
             for file in self._files.values():
                 file.append(self, start, stop)
-            rows = [t_s[:, None], *(a[start:stop].reshape(stop - start, -1) for a in self.arrays.values())]
-            self._part.write(np.ascontiguousarray(np.hstack(rows), dtype="<f8").tobytes())
+            table = np.hstack([t_s[:, None], *(rows[start:stop] for rows in self.rows.values())])
+            self._part.write(np.ascontiguousarray(table, dtype="<f8").tobytes())
             self._part.flush()
             self.written = stop
         if recording:
@@ -150,6 +156,18 @@ class TraceRecorder:
             self.tracking_error_m = None
         else:
             self.tracking_error_m = self.tracking_error_m[:n]
+
+
+def _port_views(comp: str, ports, rows: np.ndarray):
+    """``((comp, port), (n, *shape) view)`` of each port into its component's ``rows`` (n, width)."""
+    start = 0
+    for port in ports:
+        size = int(np.prod(port.shape))
+        view = rows[:, start] if port.shape == () else rows[:, start:start + size].reshape(len(rows), *port.shape)
+        if not np.may_share_memory(view, rows):  # a copy would never see the ticks recorded
+            raise AssertionError(f"{comp}.{port.name}: not a view of the component's rows")
+        yield (comp, port.name), view
+        start += size
 
 
 def load_trace(run_dir: str | Path) -> dict[str, np.ndarray]:

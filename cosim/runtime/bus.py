@@ -15,9 +15,9 @@ Keys (``run_id`` and component names are single key chunks):
   to every port.
 
 Values travel as raw little-endian float64 bytes, the ports one after
-another in the component's declared order and shapes (:class:`ValueLayout`:
-producer and consumer know the wiring, and every node checked the run's
-fingerprint); the attachment carries the tick index (int64, little-endian),
+another in the component's declared order and shapes (producer and consumer
+know the wiring, and every node checked the run's fingerprint; see
+:class:`cosim.runtime.portcache.PortStore`); the attachment carries the tick index (int64, little-endian),
 so a consumer knows which step produced the values. No pickle anywhere.
 """
 
@@ -171,10 +171,9 @@ def tick_key(run_id: str) -> str:
 _TICK = struct.Struct("<q")
 
 
-def encode_outputs(values: list[np.ndarray], tick: int) -> tuple[bytes, bytes]:
-    """``(payload, attachment)`` of one step's outputs ``values`` (float64, in the declared port order)
-    produced at ``tick``; read back with :func:`decode_tick` and the producer's :class:`ValueLayout`."""
-    return _pack(values), _TICK.pack(tick)
+def encode_tick(tick: int) -> bytes:
+    """The attachment that stamps a step's outputs with the tick they were produced at."""
+    return _TICK.pack(tick)
 
 
 def decode_tick(attachment: bytes) -> int:
@@ -187,33 +186,9 @@ def _pack(values) -> bytes:
 
 def encode_reply(header: dict, values: list[np.ndarray] = ()) -> tuple[bytes, bytes]:
     """``(payload, attachment)`` of a node's reply: the raw float64 bytes of
-    ``values`` one after another (see :class:`ValueLayout`), and ``header`` as JSON."""
+    ``values`` one after another (rows of its outputs, see
+    :meth:`cosim.runtime.portcache.PortStore.store_payload`), and ``header`` as JSON."""
     return _pack(values), encode_json(header)
-
-
-class ValueLayout:
-    """Where each of a fixed list of arrays lies in the payload of :func:`encode_outputs` or
-    :func:`encode_reply`."""
-
-    def __init__(self, shapes: list[tuple[int, ...]]):
-        sizes = [int(np.prod(shape)) for shape in shapes]
-        ends = np.cumsum(sizes, dtype=int).tolist()
-        self.size = sum(sizes)
-        self._slices = [(end - size, end, shape) for end, size, shape in zip(ends, sizes, shapes)]
-
-    def split(self, payload: bytes, count: int = 1) -> list[list[np.ndarray]]:
-        """The arrays of ``count`` such lists laid end to end in one payload (read-only views)."""
-        flat = np.frombuffer(payload, dtype=_F64)
-        if flat.size != count * self.size:
-            raise ValueError(f"payload holds {flat.size} values, expected {count} x {self.size}")
-        return [[flat[base + start:base + end].reshape(shape) for start, end, shape in self._slices]
-                for base in range(0, flat.size, self.size)]
-
-
-def output_layouts(outputs: dict) -> dict[str, tuple[list[str], ValueLayout]]:
-    """Per component, its output ports' names and their :class:`ValueLayout` (``outputs``: a
-    wiring's ``{component: [Port, ...]}``)."""
-    return {c: ([p.name for p in ports], ValueLayout([p.shape for p in ports])) for c, ports in outputs.items()}
 
 
 def encode_json(obj) -> bytes:

@@ -76,15 +76,11 @@ class _Node:
         self.done_values: list = []
         self.done_lock = threading.Lock()  # held briefly: a flush reports even past a hung step
 
-    def on_data(self, producer: str, ports: list[tuple[int, str]], layout: bus.ValueLayout,
-                sample: zenoh.Sample) -> None:
-        """A step's outputs of ``producer``: keep those of ``ports`` (their index in its declared
-        outputs, their name) that this node consumes."""
+    def on_data(self, producer: str, sample: zenoh.Sample) -> None:
+        """A step's outputs of ``producer``."""
         tick = bus.decode_tick(sample.attachment.to_bytes())
-        values = layout.split(sample.payload.to_bytes())[0]
         with self.lock:
-            for i, port in ports:
-                self.store.store((producer, port), tick, values[i])
+            self.store.store_payload(producer, [tick], sample.payload.to_bytes())
             self._advance()
 
     def on_tick(self, sample: zenoh.Sample) -> None:
@@ -92,7 +88,7 @@ class _Node:
         with self.lock:
             self.last_heard = time.monotonic()
             if msg.get("check"):
-                missing = [f"{s}.{p}" for s, p, _, _ in self.edges if not self.store.has(s, p, -1)]
+                missing = [f"{s}.{p}" for s, p, _, _ in self.edges if not self.store.has(s, -1)]
                 self.reply(-1, "check", missing=missing)
             else:
                 self.until = max(self.until, msg["until"])
@@ -111,8 +107,7 @@ class _Node:
                 self.reply(-1, "init", values=self.stepper.last_outputs)
 
     def _inputs_ready(self, tick: int) -> bool:
-        return all(self.store.has(src, port, expected_stamp(tick, per, delay))
-                   for src, port, per, delay in self.edges)
+        return all(self.store.has(src, expected_stamp(tick, per, delay)) for src, _, per, delay in self.edges)
 
     def _report(self, phase: str | None = None) -> None:
         """Reply with the steps not reported yet (a ``flush`` reply even with none)."""
@@ -213,14 +208,12 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         session.close()
         return 1
     timeout_s = scenario.components[name].timeout_s or scenario.timeout_s
-    store = PortStore([(src, port) for src, port, _, _ in edges], keep=WINDOW + 2)
+    producers = {src: wiring.outputs[src] for src, _, _, _ in edges}
+    store = PortStore(producers, keep=WINDOW + 2)
     stepper = Stepper(name, component, session, run_id, wiring, store, timeout_s)
     node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply)
-    subs = []
-    for src, (names, layout) in bus.output_layouts({s: wiring.outputs[s] for s, _, _, _ in edges}).items():
-        used = [(i, port) for i, port in enumerate(names) if any(e[:2] == (src, port) for e in edges)]
-        subs.append(session.declare_subscriber(bus.outputs_key(run_id, src),
-                                               lambda s, a=(src, used, layout): node.on_data(*a, s)))
+    subs = [session.declare_subscriber(bus.outputs_key(run_id, src), lambda s, src=src: node.on_data(src, s))
+            for src in producers]
     subs.append(session.declare_subscriber(bus.tick_key(run_id), node.on_tick))
     subs.append(session.declare_subscriber(bus.ctl_key(run_id, name, "cmd"), node.on_cmd))
     token = session.liveliness().declare_token(bus.alive_key(run_id, name))

@@ -1,12 +1,15 @@
-"""Port values received from the bus, keyed by (component, port) and tick stamp.
+"""Port values received from the bus, keyed by component and tick stamp.
 
-:class:`PortStore` keeps, per port, its few most recent values so a
-consumer over a delayed edge can read the previous tick's value even after
-the producer published a newer one. :class:`PortCache` fills a store from
-zenoh FIFO channels, one per producing component (no Python callback
-thread: a local put lands in the channel before ``put`` returns), and
-waits, polling, for a stamp that has not arrived yet. Nodes fill a plain
-store from their subscribers' callbacks instead.
+A component's outputs travel as one message per tick (see
+:meth:`cosim.runtime.stepper.Stepper.step`), and are kept so: per producing
+component, its few most recent rows, each the flat float64 array of the
+message (a row costs one store; a port's value is a view into it, made
+when a consumer reads it). :class:`PortStore` keeps them; a consumer over a delayed edge
+reads the previous tick's row even after the producer published a newer one.
+:class:`PortCache` fills a store from zenoh FIFO channels, one per producing
+component (no Python callback thread: a local put lands in the channel
+before ``put`` returns), and waits, polling, for a stamp that has not arrived
+yet. Nodes fill a plain store from their subscribers' callbacks instead.
 """
 
 from __future__ import annotations
@@ -18,75 +21,109 @@ from cosim.runtime import bus
 
 
 class PortTimeout(RuntimeError):
-    def __init__(self, component: str, port: str, stamp: int):
-        super().__init__(f"no value of {component}.{port} for tick {stamp}")
+    """No value of ``component.port`` (of any of its outputs: ``port`` None) for tick ``stamp``."""
+
+    def __init__(self, component: str, port: str | None, stamp: int):
+        super().__init__(f"no value of {component}.{port or '*'} for tick {stamp}")
         self.component, self.port, self.stamp = component, port, stamp
+
+    @property
+    def what(self) -> str:
+        return f"its output {self.port!r}" if self.port else "its outputs"
 
 
 class PortStore:
-    """``keep``: values kept per port; enough for a delayed edge in lockstep, more where
-    producers may run ahead of their consumers (a distributed run's window)."""
+    """Rows of the components in ``outputs`` (a wiring's ``{component: [Port, ...]}``).
 
-    def __init__(self, ports: list[tuple[str, str]], keep: int = 3):
-        self._values: dict[tuple[str, str], dict[int, np.ndarray]] = {p: {} for p in ports}
+    ``keep``: rows kept per component; enough for a delayed edge in lockstep, more where
+    producers may run ahead of their consumers (a distributed run's window).
+    """
+
+    def __init__(self, outputs: dict, keep: int = 3):
+        #: per component and port, (start, end, shape or None for a vector) in the component's rows
+        self._slots = {c: {p.name: slot for p, slot in zip(ports, _slots(ports))} for c, ports in outputs.items()}
+        self._sizes = {c: sum(int(np.prod(p.shape)) for p in ports) for c, ports in outputs.items()}
+        self._rows: dict[str, dict[int, np.ndarray]] = {c: {} for c in outputs}
         self._keep = keep
 
-    def store(self, key: tuple[str, str], tick: int, value: np.ndarray) -> None:
-        """Keep ``value`` of ``key`` produced at ``tick``; a producer's ticks come in
-        increasing order, so the oldest value is the first one stored."""
-        values = self._values[key]
-        values[tick] = value
-        if len(values) > self._keep:
-            del values[next(iter(values))]
+    def slot(self, comp: str, port: str) -> tuple[int, int, tuple | None]:
+        """Where ``comp.port`` lies in ``comp``'s rows: ``(start, end, shape)``, shape None for a
+        vector (the slice is the value); see :func:`port_value`."""
+        return self._slots[comp][port]
 
-    def has(self, comp: str, port: str, stamp: int) -> bool:
-        return stamp in self._values[(comp, port)]
+    def store_payload(self, comp: str, ticks: list[int], payload: bytes) -> None:
+        """Keep ``comp``'s rows of ``ticks``, laid end to end in ``payload``."""
+        flat, size = np.frombuffer(payload, dtype="<f8"), self._sizes[comp]
+        if flat.size != len(ticks) * size:
+            raise ValueError(f"{comp}: payload holds {flat.size} values, expected {len(ticks)} x {size}")
+        for i, tick in enumerate(ticks):
+            self.store(comp, tick, flat[i * size:(i + 1) * size])
 
-    def get(self, comp: str, port: str, stamp: int, timeout_s: float) -> np.ndarray:
-        """The value of ``comp.port`` produced at tick ``stamp`` (a plain store does not wait)."""
+    def store(self, comp: str, tick: int, row: np.ndarray) -> None:
+        """Keep ``comp``'s row produced at ``tick``; a producer's ticks come in increasing order,
+        so the oldest row is the first one stored."""
+        rows = self._rows[comp]
+        rows[tick] = row
+        if len(rows) > self._keep:
+            del rows[next(iter(rows))]
+
+    def has(self, comp: str, stamp: int) -> bool:
+        return stamp in self._rows[comp]
+
+    def row(self, comp: str, stamp: int, timeout_s: float = 0.0) -> np.ndarray:
+        """``comp``'s outputs produced at tick ``stamp``, flat (a plain store does not wait)."""
         try:
-            return self._values[(comp, port)][stamp]
+            return self._rows[comp][stamp]
         except KeyError:
+            raise PortTimeout(comp, None, stamp) from None
+
+    def get(self, comp: str, port: str, stamp: int, timeout_s: float = 0.0) -> np.ndarray:
+        """The value of ``comp.port`` produced at tick ``stamp``."""
+        try:
+            return port_value(self.row(comp, stamp, timeout_s), *self._slots[comp][port])
+        except PortTimeout:
             raise PortTimeout(comp, port, stamp) from None
 
 
 class PortCache(PortStore):
-    """A store subscribed to the outputs of the components in ``outputs`` (a wiring's
-    ``{component: [Port, ...]}``) of run ``run_id`` through FIFO channels."""
+    """A store subscribed to the outputs of the components in ``outputs`` of run ``run_id``
+    through FIFO channels."""
 
     def __init__(self, session: zenoh.Session, run_id: str, outputs: dict):
-        super().__init__([(c, p.name) for c, ports in outputs.items() for p in ports])
-        self._layouts = bus.output_layouts(outputs)
+        super().__init__(outputs)
         self._subs = {c: session.declare_subscriber(bus.outputs_key(run_id, c))
                       for c, ports in outputs.items() if ports}
 
     def _drain(self, comp: str) -> None:
         """Move what has arrived from one component into the store."""
-        sub, (names, layout) = self._subs[comp], self._layouts[comp]
+        sub, rows = self._subs[comp], self._rows[comp]
         while (sample := sub.try_recv()) is not None:
-            tick = bus.decode_tick(sample.attachment.to_bytes())
-            for name, value in zip(names, layout.split(sample.payload.to_bytes())[0]):
-                self.store((comp, name), tick, value)
+            rows[bus.decode_tick(sample.attachment.to_bytes())] = np.frombuffer(sample.payload.to_bytes(), dtype="<f8")
+            if len(rows) > self._keep:
+                del rows[next(iter(rows))]
 
-    def has(self, comp: str, port: str, stamp: int) -> bool:
-        self._drain(comp)
-        return super().has(comp, port, stamp)
-
-    def get(self, comp: str, port: str, stamp: int, timeout_s: float) -> np.ndarray:
-        """Waits up to ``timeout_s`` for the value (see :func:`cosim.runtime.bus.poll`)."""
-        key = (comp, port)
-        values = self._values[key]
-        if stamp not in values:
+    def has(self, comp: str, stamp: int) -> bool:
+        if stamp not in self._rows[comp]:
             self._drain(comp)
-        if stamp not in values:
+        return stamp in self._rows[comp]
 
-            def fetch():
-                self._drain(comp)
-                return values.get(stamp)
+    def row(self, comp: str, stamp: int, timeout_s: float = 0.0) -> np.ndarray:
+        """Waits up to ``timeout_s`` for the row (see :func:`cosim.runtime.bus.poll`)."""
+        rows = self._rows[comp]
+        found = rows.get(stamp)
+        if found is None:
+            self._drain(comp)
+            found = rows.get(stamp)
+            if found is None:
 
-            if bus.poll(fetch, timeout_s) is None:
-                raise PortTimeout(comp, port, stamp)
-        return values[stamp]
+                def fetch():
+                    self._drain(comp)
+                    return rows.get(stamp)
+
+                found = bus.poll(fetch, timeout_s)
+                if found is None:
+                    raise PortTimeout(comp, None, stamp)
+        return found
 
     def close(self) -> None:
         for sub in self._subs.values():
@@ -101,3 +138,18 @@ def expected_stamp(tick: int, period: int, delay: int) -> int:
     """
     k = tick - delay
     return -1 if k < 0 else (k // period) * period
+
+
+def _slots(ports) -> list[tuple[int, int, tuple | None]]:
+    out, start = [], 0
+    for port in ports:
+        size = int(np.prod(port.shape))
+        out.append((start, start + size, None if len(port.shape) == 1 else port.shape))
+        start += size
+    return out
+
+
+def port_value(row: np.ndarray, start: int, end: int, shape: tuple | None) -> np.ndarray:
+    """A port's value: a read-only view into its component's flat ``row``."""
+    value = row[start:end]
+    return value if shape is None else value.reshape(shape)

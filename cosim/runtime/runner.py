@@ -128,13 +128,12 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     realtime = request.realtime or scenario.realtime
     write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
                                        "note": "written when the run started; a run that ends rewrites it"})
-    ports = [(c, p.name) for c in wiring.order for p in wiring.outputs[c]]
     plan = load_hosts(request.hosts, scenario) if request.processes and request.hosts else None
     endpoint = (plan.scheduler_listen if plan else _loopback_endpoint()) if request.processes else None
     session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None) if endpoint \
         else bus.open_session()
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
-    cache = PortStore(ports, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, wiring.outputs)
+    cache = PortStore(wiring.outputs, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, wiring.outputs)
     procs: list[subprocess.Popen] = []
     group = scheduler = error = None
     completed = 0

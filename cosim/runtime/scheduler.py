@@ -83,7 +83,8 @@ class StopRequest:
 class Observer(Protocol):
     """Read-only watcher of a run (recorders, loggers). Never changes the run."""
 
-    def on_tick(self, tick: int, t: float, values: dict[tuple[str, str], np.ndarray]) -> None: ...
+    def on_tick(self, tick: int, t: float, rows: dict[str, np.ndarray]) -> None:
+        """Each component's outputs at ``tick`` (flat float64, its ports laid end to end in declared order)."""
 
     def finish(self, error: str | None, event: str | None = None) -> None:
         """The run ended (``error``: why it failed); ``event``: the failure or stop, to note."""
@@ -175,7 +176,6 @@ class RemoteGroup:
     def __init__(self, session: zenoh.Session, run_id: str, wiring: Wiring, store: PortStore):
         self.names = names = wiring.order
         self._store = store
-        self._outputs = bus.output_layouts({n: wiring.outputs[n] for n in names})
         self._dead: set[str] = set()
         self._tick_pub = bus.publisher(session, bus.tick_key(run_id))
         self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}
@@ -277,11 +277,7 @@ class RemoteGroup:
         if ticks:  # a batch of steps
             self._done[reply["name"]] = ticks[-1]
         if payload:  # a batch's outputs, or those of a fault's step or of init
-            ports, layout = self._outputs[reply["name"]]
-            ticks = ticks or [reply["tick"]]
-            for tick, values in zip(ticks, layout.split(payload, len(ticks))):
-                for port, value in zip(ports, values):
-                    self._store.store((reply["name"], port), tick, value)
+            self._store.store_payload(reply["name"], ticks or [reply["tick"]], payload)
         return reply
 
     def poll_reply(self, timeout_s: float) -> dict | None:
@@ -408,7 +404,8 @@ class Scheduler:
         self.pacer = (Pacer(scenario.dt_s, realtime_factor, scenario.n_steps, self.stop_event)
                       if realtime_factor else None)
         self.timeouts = {n: scenario.components[n].timeout_s or scenario.timeout_s for n in wiring.order}
-        self._observed = [(c, p.name, wiring.periods[c]) for c in wiring.order for p in wiring.outputs[c]]
+        #: (component, period) of every component with outputs: what the observers get each tick
+        self._observed = [(c, wiring.periods[c]) for c in wiring.order if wiring.outputs[c]]
         self.progress = Progress()
         self.loop_wall_s = 0.0  # wall time of the ticks alone (set-up and writing excluded)
         self._flushed: tuple = (None, 0.0)  # (occasion, time) of the watchdog's last flush
@@ -474,7 +471,7 @@ class Scheduler:
         self.group.interrupt(component, reason)
 
     def _observed_missing(self) -> list[str]:
-        return [c for c, p, _ in self._observed if not self.cache.has(c, p, -1)]
+        return [c for c, _ in self._observed if not self.cache.has(c, -1)]
 
     def _work(self) -> None:
         state, dt, order = self.progress, self.scenario.dt_s, self.wiring.order
@@ -497,7 +494,7 @@ class Scheduler:
                 if state.done:  # the watchdog gave up on us
                     return
         except PortTimeout as exc:
-            self._fail(RunError(exc.component, f"its output {exc.port!r} for tick {exc.stamp} never arrived"))
+            self._fail(RunError(exc.component, f"{exc.what} for tick {exc.stamp} never arrived"))
         except RunError as exc:
             self._catch_up(exc.tick)
             if isinstance(exc, RunFault):  # record the fault's tick as far as it went
@@ -520,22 +517,22 @@ class Scheduler:
         state, dt = self.progress, self.scenario.dt_s
         if failed_tick is None:
             return
-        while state.tick < failed_tick and all(self.cache.has(c, p, expected_stamp(state.tick, per, 0))
-                                               for c, p, per in self._observed):
+        while state.tick < failed_tick and all(self.cache.has(c, expected_stamp(state.tick, per, 0))
+                                               for c, per in self._observed):
             self._observe(state.tick, state.tick * dt)
             state.tick += 1
 
     def _observe(self, tick: int, t: float, partial: bool = False) -> None:
         """Give the observers every port's value at ``tick``; ``partial`` (a fault stopped the
         tick midway) gives what was published and leaves the rest out."""
+        cache = self.cache
         if partial:
-            values = {(c, p): self.cache.get(c, p, s, 0.0) for c, p, per in self._observed
-                      if self.cache.has(c, p, s := expected_stamp(tick, per, 0))}
+            rows = {c: cache.row(c, s) for c, per in self._observed if cache.has(c, s := expected_stamp(tick, per, 0))}
         else:
-            values = {(c, p): self.cache.get(c, p, expected_stamp(tick, per, 0), self.scenario.timeout_s)
-                      for c, p, per in self._observed}
+            timeout = self.scenario.timeout_s
+            rows = {c: cache.row(c, tick - tick % per, timeout) for c, per in self._observed}
         for obs in self.observers:
-            obs.on_tick(tick, t, values)
+            obs.on_tick(tick, t, rows)
 
     def _fail(self, error: RunError) -> None:
         if self.progress.error is None:  # the watchdog's reason, if it spoke first, stands

@@ -17,7 +17,7 @@ import zenoh
 from cosim.runtime import bus
 from cosim.contract.component import Component, ComponentError, ComponentFault
 from cosim.scenario.paths import make_path
-from cosim.runtime.portcache import PortCache, expected_stamp
+from cosim.runtime.portcache import PortStore, PortTimeout
 from cosim.scenario.schema import Scenario
 from cosim.runtime.wiring import Wiring
 
@@ -52,26 +52,41 @@ class Stepper:
     """Holds one set-up component and its bus endpoints."""
 
     def __init__(self, name: str, component: Component, session: zenoh.Session, run_id: str,
-                 wiring: Wiring, cache: PortCache, timeout_s: float):
+                 wiring: Wiring, cache: PortStore, timeout_s: float):
         self.name = name
         self.component = component
         self.cache = cache
         self.timeout_s = timeout_s
         self.period = wiring.periods[name]
-        self._inputs = [(e.dst_port, e.src, e.src_port, wiring.periods[e.src], e.delay)
+        #: (input port, producer, its port, its slot in the producer's rows, period, delay) of each input
+        self._inputs = [(e.dst_port, e.src, e.src_port, cache.slot(e.src, e.src_port), wiring.periods[e.src], e.delay)
                         for e in wiring.edges_into(name)]
         self._ports = {p.name: p.shape for p in wiring.outputs[name]}
+        #: (port, shape, start, end) of each output in the published row
+        self._slots, start = [], 0
+        for port in wiring.outputs[name]:
+            size = int(np.prod(port.shape))
+            self._slots.append((port.name, port.shape, start, start + size))
+            start += size
+        self._size = start
         # a component without outputs (a scope, a logger) publishes nothing
         self._pub = bus.publisher(session, bus.outputs_key(run_id, name)) if self._ports else None
-        #: the values last published, in the declared port order
+        #: the row last published: [every output, flat, in the declared port order] (or [] before any)
         self.last_outputs: list[np.ndarray] = []
 
     def publish_initial(self) -> None:
         self._publish(-1, self.component.initial_outputs())
 
     def step(self, tick: int, t: float) -> None:
-        inputs = {dst: self.cache.get(src, port, expected_stamp(tick, period, delay), self.timeout_s)
-                  for dst, src, port, period, delay in self._inputs}
+        row, timeout = self.cache.row, self.timeout_s
+        inputs = {}
+        for dst, src, port, (start, end, shape), period, delay in self._inputs:
+            k = tick - delay
+            try:
+                value = row(src, -1 if k < 0 else k - k % period, timeout)[start:end]
+            except PortTimeout as exc:
+                raise PortTimeout(src, port, exc.stamp) from None
+            inputs[dst] = value if shape is None else value.reshape(shape)
         self._publish(tick, self.component.step(t, inputs))
         if self.component.fault:
             raise ComponentFault(self.component.fault)
@@ -80,15 +95,15 @@ class Stepper:
         if outputs is None or outputs.keys() != self._ports.keys():
             got = sorted(outputs or {})
             raise ComponentError(f"returned ports {got}, expected {sorted(self._ports)}")
-        values = {}
-        for port, shape in self._ports.items():
-            values[port] = np.asarray(outputs[port], dtype=float)
-            if values[port].shape != shape:
-                raise ComponentError(f"output {port!r} has shape {values[port].shape}, declared {shape}")
-        self.last_outputs = list(values.values())
+        row = np.empty(self._size)
+        for port, shape, start, end in self._slots:
+            value = np.asarray(outputs[port], dtype=float)
+            if value.shape != shape:
+                raise ComponentError(f"output {port!r} has shape {value.shape}, declared {shape}")
+            row[start:end] = value if value.ndim < 2 else value.reshape(-1)
+        self.last_outputs = [row]
         if self._pub is not None:
-            payload, attachment = bus.encode_outputs(self.last_outputs, tick)
-            self._pub.put(payload, attachment=attachment)
+            self._pub.put(row.tobytes(), attachment=bus.encode_tick(tick))
 
     def close(self) -> str | None:
         """Close the component; returns the fault it set while closing (see :class:`Component`), if any."""
