@@ -11,7 +11,9 @@ its outputs. Large arrays should stay vectorised with numpy.
 Each function does the same floating-point operations, in the same order,
 as the numpy expression it replaces (named in its docstring), so the results
 are the same to the bit: ``a.dot(b)`` on (3,) arrays sums ``a0 b0 + a1 b1``
-first, then ``+ a2 b2``, as :func:`dot` does.
+first, then ``+ a2 b2``, as :func:`dot` does (for the dot product that is
+the BLAS's order; ``tests/test_float_paths.py`` checks it against numpy,
+so a BLAS that summed otherwise, or fused the multiply-adds, would show).
 """
 
 from __future__ import annotations

@@ -174,6 +174,8 @@ class InverseMagnetics(Component):
             now = field_direction(n0, e10, 2 * math.pi * f0 * (t - t0))
         e1 = plane_start(n, now)
         self.rotation = (n, e1, f_hz, t)
+        # the complex products stay numpy's: its matrix product, complex multiply and abs round
+        # differently from Python's complex arithmetic (BLAS, SIMD loops), and the bits must not change
         field = np.array(rotating_field_phasor(n, e1, self.field_t))
         current = self.m_pinv.dot(field)  # (6,) complex A
         z = impedance_ohm(f_hz, *self.rlc)
