@@ -1,10 +1,19 @@
 """Helpers for single 3-vectors, where numpy's per-call overhead is the whole cost.
 
-Components run these on (3,) arrays every 20 ms tick, on the critical path of
-the loop. ``np.linalg.norm(v)`` costs ~1.6 us on a (3,) array,
-``np.all(np.isfinite(v))`` ~3.5 us and ``np.cross`` ~20 us, nearly all of it
-dispatch; these give the same values in a fraction of that. Large arrays
-should stay vectorised with numpy.
+Components run these every 20 ms tick, on the critical path of the loop.
+``np.linalg.norm(v)`` costs ~1.6 us on a (3,) array, ``np.all(np.isfinite(v))``
+~3.5 us and ``np.cross`` ~20 us, nearly all of it dispatch; arithmetic on
+three Python floats costs a fraction of a microsecond. So a hot path turns
+its (3,) input arrays into tuples once (``tuple(v.tolist())``), works on
+:data:`Vec3` tuples with the functions below, and builds an array only for
+its outputs. Large arrays should stay vectorised with numpy.
+
+Each function does the same floating-point operations, in the same order,
+as the numpy expression it replaces (named in its docstring), so the results
+are the same to the bit: ``a.dot(b)`` on (3,) arrays sums ``a0 b0 + a1 b1``
+first, then ``+ a2 b2``, as :func:`dot` does (for the dot product that is
+the BLAS's order; ``tests/test_float_paths.py`` checks it against numpy,
+so a BLAS that summed otherwise, or fused the multiply-adds, would show).
 """
 
 from __future__ import annotations
@@ -13,6 +22,9 @@ import math
 
 import numpy as np
 
+#: A 3-vector as three Python floats.
+Vec3 = tuple[float, float, float]
+
 
 def norm(v: np.ndarray) -> float:
     """Euclidean norm of a 1-D float array: the same value as ``np.linalg.norm(v)``
@@ -20,13 +32,44 @@ def norm(v: np.ndarray) -> float:
     return math.sqrt(v.dot(v))
 
 
-def all_finite(v: np.ndarray) -> bool:
-    """True when no element of the small 1-D array ``v`` is NaN or infinite."""
-    return all(map(math.isfinite, v.tolist()))
+def all_finite(v) -> bool:
+    """True when no element of the small 1-D array (or sequence of floats) ``v`` is NaN or infinite."""
+    return all(map(math.isfinite, v.tolist() if isinstance(v, np.ndarray) else v))
 
 
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product ``a x b`` of two (3,) arrays, shape (3,)."""
-    ax, ay, az = a.tolist()
-    bx, by, bz = b.tolist()
-    return np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
+def dot(a: Vec3, b: Vec3) -> float:
+    """``a . b``, as ``a.dot(b)`` on (3,) arrays."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def length(v: Vec3) -> float:
+    """Euclidean norm of ``v``, as :func:`norm` (``sqrt(v.dot(v))``) on a (3,) array."""
+    x, y, z = v
+    return math.sqrt(x * x + y * y + z * z)
+
+
+def cross(a: Vec3, b: Vec3) -> Vec3:
+    """Cross product ``a x b``."""
+    ax, ay, az = a
+    bx, by, bz = b
+    return (ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx)
+
+
+def add(a: Vec3, b: Vec3) -> Vec3:
+    """``a + b``."""
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def sub(a: Vec3, b: Vec3) -> Vec3:
+    """``a - b``."""
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def scale(v: Vec3, k: float) -> Vec3:
+    """``k * v`` (also ``v * k``: the product is the same either way)."""
+    return (k * v[0], k * v[1], k * v[2])
+
+
+def div(v: Vec3, k: float) -> Vec3:
+    """``v / k``, element by element (not ``v * (1 / k)``, which rounds differently)."""
+    return (v[0] / k, v[1] / k, v[2] / k)

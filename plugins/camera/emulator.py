@@ -10,12 +10,14 @@ jumps by ``outlier_mm``). All draws come from the component's seeded RNG.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
 
 from cosim import Component, ComponentError, Port
 from cosim.contract.params import Param, read_params, whole_ticks
+from cosim_plugins.vec3 import length
 
 PARAMS = {
     "interval_s": Param(0.02, "time between captured frames [s], a multiple of dt", 0.0, 60.0),
@@ -28,8 +30,11 @@ PARAMS = {
     "lost_prob": Param(0.0, "probability the detection repeats the previous position", 0.0, 1.0),
 }
 
-#: The truth's coordinates each camera sees, in the order of the noise draws: top (x, y), side (x, z).
-CAMERA_AXES = np.array([0, 1, 0, 2])
+
+def _rint(x: float) -> float:
+    """``np.rint`` of one float: the nearest whole number, halves to even; keeps the sign of a
+    zero (-0.3 gives -0.0) and passes NaN and infinities."""
+    return math.copysign(round(x), x) if math.isfinite(x) else x
 
 
 class CameraEmulator(Component):
@@ -47,6 +52,7 @@ class CameraEmulator(Component):
         self.latency = whole_ticks(self.p["latency_s"], dt, "latency_s")
         self.rng = rng
         self.pixel_m = self.p["pixel_mm"] * 1e-3
+        self.noise_sd_m = self.p["noise_px"] * self.pixel_m
         self.queue: deque = deque()
         self.last = None
         self.tick = 0
@@ -57,19 +63,24 @@ class CameraEmulator(Component):
 
     def _capture(self, truth: np.ndarray) -> np.ndarray | None:
         p, rng = self.p, self.rng
-        draws = rng.random(3)  # drop, lost, outlier: always three draws keeps streams aligned
-        noise = rng.normal(0.0, p["noise_px"] * self.pixel_m, size=4)
-        jump = rng.normal(size=3)
-        if draws[0] < p["drop_prob"]:
+        drop, lost, outlier = rng.random(3).tolist()  # always all draws keeps streams aligned
+        # four pixel noises, then an outlier's direction: one call draws the stream that
+        # rng.normal(0, sd, size=4) and rng.normal(size=3) drew, as loc + scale * z each
+        normals = rng.standard_normal(7).tolist()
+        if drop < p["drop_prob"]:
             return None
-        if draws[1] < p["lost_prob"] and self.last is not None:
+        if lost < p["lost_prob"] and self.last is not None:
             return self.last
-        # both cameras at once: (top x, top y, side x, side z), quantised to the pixel grid
-        pixels = np.rint((truth[CAMERA_AXES] + noise) / self.pixel_m) * self.pixel_m
-        if draws[2] < p["outlier_prob"]:
-            offset = jump / np.linalg.norm(jump) * p["outlier_mm"] * 1e-3
-            pixels[:2] += offset[:2]  # a reflection fools the top camera
-        top_x, top_y, side_x, side_z = pixels.tolist()
+        # both cameras: (top x, top y, side x, side z), with noise, quantised to the pixel grid
+        x_m, y_m, z_m = truth.tolist()
+        sd_m, pixel_m = self.noise_sd_m, self.pixel_m
+        top_x, top_y, side_x, side_z = [_rint((v + (0.0 + sd_m * dz)) / pixel_m) * pixel_m
+                                        for v, dz in zip((x_m, y_m, x_m, z_m), normals)]
+        if outlier < p["outlier_prob"]:  # a reflection fools the top camera
+            jump = [0.0 + 1.0 * dz for dz in normals[4:]]
+            size = length(jump)
+            top_x += jump[0] / size * p["outlier_mm"] * 1e-3
+            top_y += jump[1] / size * p["outlier_mm"] * 1e-3
         meas = np.array([(top_x + side_x) / 2, top_y, side_z])
         self.last = meas
         return meas

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from cosim_plugins.vec3 import cross, norm
+from cosim_plugins.vec3 import Vec3, add, cross, div, dot, length, scale, sub
 
 MU0 = 4e-7 * np.pi
 
@@ -47,31 +47,33 @@ def impedance_ohm(freq_hz: float, r_ohm: float, l_h: float, c_f: float) -> compl
 
 
 #: Fallback directions for :func:`plane_start`, tried in order.
-_FALLBACKS = (np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+_FALLBACKS: tuple[Vec3, ...] = ((0.0, 0.0, 1.0), (1.0, 0.0, 0.0))
 
 
-def plane_start(n: np.ndarray, towards: np.ndarray | None) -> np.ndarray:
+def plane_start(n: Vec3, towards: Vec3 | None) -> Vec3:
     """Unit vector perpendicular to unit ``n``: ``towards`` projected onto the plane, else any."""
     for candidate in (towards, *_FALLBACKS):
         if candidate is None:
             continue
-        v = candidate - candidate.dot(n) * n
-        size = norm(v)
+        v = sub(candidate, scale(n, dot(candidate, n)))
+        size = length(v)
         if size > 1e-6:
-            return v / size
+            return div(v, size)
     raise ValueError("no perpendicular found")  # unreachable for a unit n
 
 
-def rotating_field_phasor(n: np.ndarray, e1: np.ndarray, amplitude_t: float) -> np.ndarray:
-    """Complex field phasor (3,) of a field of ``amplitude_t`` [T] rotating about unit ``n``.
+def rotating_field_phasor(n: Vec3, e1: Vec3, amplitude_t: float) -> tuple[complex, complex, complex]:
+    """Complex field phasor (x, y, z) of a field of ``amplitude_t`` [T] rotating about unit ``n``.
 
     ``Re(phasor * exp(j theta)) = A (e1 cos(theta) + e2 sin(theta))`` with
     ``e2 = n x e1``: the field points along ``e1`` at ``theta = 0`` and turns
     right-handed about ``n``.
     """
-    return amplitude_t * (e1 - 1j * cross(n, e1))
+    e2 = cross(n, e1)
+    return (amplitude_t * (e1[0] - 1j * e2[0]), amplitude_t * (e1[1] - 1j * e2[1]),
+            amplitude_t * (e1[2] - 1j * e2[2]))
 
 
-def field_direction(n: np.ndarray, e1: np.ndarray, theta: float) -> np.ndarray:
+def field_direction(n: Vec3, e1: Vec3, theta: float) -> Vec3:
     """Unit field direction at rotation angle ``theta`` of the field defined as above."""
-    return math.cos(theta) * e1 + math.sin(theta) * cross(n, e1)
+    return add(scale(e1, math.cos(theta)), scale(cross(n, e1), math.sin(theta)))

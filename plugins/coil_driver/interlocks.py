@@ -29,9 +29,12 @@ run stops with status ``fault``:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+from cosim_plugins.vec3 import all_finite
 
 #: Coil order of every (6,) array: the cube faces.
 COIL_NAMES = ("+x", "-x", "+y", "-y", "+z", "-z")
@@ -72,22 +75,25 @@ class Limits:
     slew_v_per_s: float
 
 
-def limit_scale(amp_v: np.ndarray, prev_amp_v: np.ndarray, z_abs_ohm: float, dt_s: float,
+def limit_scale(amp_v: Sequence[float], prev_amp_v: Sequence[float], z_abs_ohm: float, dt_s: float,
                 limits: Limits) -> float:
     """The common factor in [0, 1] that brings all six coils within ``limits``.
 
-    ``amp_v``: (6,) wanted voltage amplitudes [V]; ``prev_amp_v``: (6,) the
+    ``amp_v``: the six wanted voltage amplitudes [V]; ``prev_amp_v``: the six
     amplitudes delivered at the previous tick [V]; ``z_abs_ohm``: the coils'
     impedance magnitude at the drive frequency; ``dt_s``: the tick [s].
+    Sequences of floats or (6,) arrays alike (the driver passes lists: six
+    values are cheaper in Python than through numpy).
     """
-    peak = float(amp_v.max(initial=0.0))
+    peak = math.nan if any(map(math.isnan, amp_v)) else max(0.0, *amp_v)  # NaN propagates, as in numpy's max
     if peak == 0.0:
         return 1.0
     scale = min(1.0, limits.v_max / peak, limits.i_max * z_abs_ohm / peak)
-    rising = amp_v * scale > prev_amp_v + limits.slew_v_per_s * dt_s
-    if rising.any():  # the largest scale at which no coil rises faster than the slew limit
-        allowed = (prev_amp_v[rising] + limits.slew_v_per_s * dt_s) / amp_v[rising]
-        scale = min(scale, float(allowed.min()))
+    rise_v = limits.slew_v_per_s * dt_s
+    # the largest scale at which no coil rises faster than the slew limit
+    allowed = [(prev + rise_v) / amp for amp, prev in zip(amp_v, prev_amp_v) if amp * scale > prev + rise_v]
+    if allowed:
+        scale = min(scale, min(allowed))
     return scale
 
 
@@ -102,22 +108,27 @@ class ThermalBudget:
     def __init__(self, r_ohm: float, dt_s: float, window_s: float, budget_j: float):
         self.r_ohm, self.dt_s, self.budget_j = r_ohm, dt_s, budget_j
         self.window_ticks = max(1, int(round(window_s / dt_s)))
-        self._ring = np.zeros((self.window_ticks, 6))  # (window_ticks, 6) J per tick
+        self._j_per_a2 = r_ohm / 2 * dt_s  # one tick's energy per squared ampere of amplitude [J/A^2]
+        self._ring = [[0.0] * 6] * self.window_ticks  # window_ticks x 6 J per tick (rows replaced, never mutated)
         self._next = 0
-        self.energy_j = np.zeros(6)  # (6,) J over the window
+        self.energy_j = [0.0] * 6  # six coils' J over the window
 
-    def add(self, current_amp_a: np.ndarray) -> Fault | None:
-        """Account one tick at current amplitudes ``current_amp_a`` (6,) [A]; a fault when over budget."""
-        tick_j = current_amp_a**2 * (self.r_ohm / 2 * self.dt_s)
-        self.energy_j += tick_j - self._ring[self._next]
+    def add(self, current_amp_a: Sequence[float]) -> Fault | None:
+        """Account one tick at the six current amplitudes ``current_amp_a`` [A]; a fault when over budget."""
+        j_per_a2 = self._j_per_a2
+        tick_j = [i * i * j_per_a2 for i in current_amp_a]
+        oldest_j = self._ring[self._next]
+        self.energy_j = energy_j = [e + (new - old) for e, new, old in zip(self.energy_j, tick_j, oldest_j)]
         self._ring[self._next] = tick_j
         self._next = (self._next + 1) % self.window_ticks
-        over = np.flatnonzero(self.energy_j > self.budget_j)
-        if not over.size:
+        if max(energy_j) <= self.budget_j:
             return None
-        k = int(over[np.argmax(self.energy_j[over])])
+        over = [k for k, e in enumerate(energy_j) if e > self.budget_j]
+        if not over:  # a NaN energy is never over budget
+            return None
+        k = max(over, key=energy_j.__getitem__)  # the first of the largest
         window_s = self.window_ticks * self.dt_s
-        return Fault("thermal_budget", f"coil {COIL_NAMES[k]} dissipated {self.energy_j[k]:.1f} J in the last "
+        return Fault("thermal_budget", f"coil {COIL_NAMES[k]} dissipated {energy_j[k]:.1f} J in the last "
                                        f"{window_s:g} s (budget {self.budget_j:g} J)")
 
 
@@ -152,6 +163,6 @@ class Watchdog:
 
 def unsafe_command(omega: np.ndarray, f_hz: float, f_limit_hz: float) -> Fault | None:
     """A fault when omega (3,) [rad/s] is not finite or spins faster than ``f_limit_hz``."""
-    if all(math.isfinite(w) for w in omega) and f_hz <= f_limit_hz:
+    if f_hz <= f_limit_hz and all_finite(omega):
         return None
     return Fault("unsafe_command", f"unsafe command omega = {omega} rad/s (limit {f_limit_hz:g} Hz): field off")

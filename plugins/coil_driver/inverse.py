@@ -54,9 +54,12 @@ from cosim_plugins.coil_driver.interlocks import (
     unsafe_command,
 )
 from cosim_plugins.coil_driver.visa_backend import KepcoSupplies
-from cosim_plugins.vec3 import norm
+from cosim_plugins.vec3 import Vec3, div, length
 
 PARAMS = coil_params.PARAMS
+
+#: Six zero amplitudes, as floats (never mutated).
+ZERO_6 = (0.0,) * 6
 
 
 def build_rig(p: dict, dt_s: float) -> Rig:
@@ -100,7 +103,11 @@ class InverseMagnetics(Component):
         self.zero = {"coil_voltage_amp": np.zeros(6), "coil_voltage_phase": np.zeros(6), "drive_freq": np.array(0.0)}
         self.rotation = None  # (n, e1, f_hz, t0_s) of the field being driven: angle 2 pi f (t - t0)
         self.limits = Limits(p["v_max"], p["i_max_a"], p["slew_v_per_s"])
-        self.prev_amp = np.zeros(6)  # (6,) V delivered at the previous step
+        self.prev_amp = ZERO_6  # the six amplitudes [V] delivered at the previous step
+        # the parameters step() reads, looked up once
+        self.f_limit_hz, self.f_min_hz, self.field_mT = p["f_limit_hz"], p["f_min_hz"], p["field_mT"]
+        self.field_t = self.field_mT * 1e-3
+        self.rlc = (p["r_ohm"], p["l_h"], p["c_f"])  # series R [ohm], L [H], C [F]
         self.thermal = ThermalBudget(p["r_ohm"], self.dt, p["thermal_window_s"], p["thermal_budget_j"])
         self.watchdog = Watchdog(p["watchdog_ticks"] * self.dt, p["watchdog_ticks"])
         self.rig = rig if rig is not None else build_rig(p, self.dt)
@@ -129,16 +136,19 @@ class InverseMagnetics(Component):
                 return self._report()
             fault = self._kick_watchdog(t)
             if fault is None:
-                fault = unsafe_command(inputs["omega"], norm(inputs["omega"]) / (2 * math.pi), self.p["f_limit_hz"])
+                omega = inputs["omega"]
+                omega_rad_s = tuple(omega.tolist())
+                f_hz = length(omega_rad_s) / (2 * math.pi)
+                fault = unsafe_command(omega, f_hz, self.f_limit_hz)
             if fault is not None:
                 return self._trip(fault)
-            out, current_amp = self._phasors(t, inputs["omega"])
+            out, amp_v, current_amp = self._phasors(t, omega_rad_s, f_hz)
             fault = self.thermal.add(current_amp)
             if fault is None and self.rig.hardware:
                 fault = self._deliver(t, out)
             if fault is not None:
                 return self._trip(fault)
-            self.prev_amp = out["coil_voltage_amp"]
+            self.prev_amp = amp_v
             return out
 
     def _kick_watchdog(self, t: float) -> Fault | None:
@@ -150,30 +160,38 @@ class InverseMagnetics(Component):
             self._start_monitor()
         return fault
 
-    def _phasors(self, t: float, omega: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        """The outputs for ``omega`` at ``t`` within the shaping limits, and the (6,) current amplitudes [A]."""
-        f = norm(omega) / (2 * math.pi)
-        if f < self.p["f_min_hz"] or self.p["field_mT"] == 0.0:
+    def _phasors(self, t: float, omega_rad_s: Vec3, f_hz: float
+                 ) -> tuple[dict[str, np.ndarray], list[float], list[float]]:
+        """The outputs for ``omega_rad_s`` (spinning at ``f_hz`` = |omega| / 2 pi) at ``t`` within the
+        shaping limits, with the six voltage amplitudes [V] and the six current amplitudes [A] as floats."""
+        if f_hz < self.f_min_hz or self.field_mT == 0.0:
             self.rotation = None
-            return self.zero, np.zeros(6)
-        n = omega / (2 * math.pi * f)
+            return self.zero, ZERO_6, ZERO_6
+        n = div(omega_rad_s, 2 * math.pi * f_hz)
         now = None
         if self.rotation is not None:  # where the field points now, continued in the new plane
             n0, e10, f0, t0 = self.rotation
             now = field_direction(n0, e10, 2 * math.pi * f0 * (t - t0))
         e1 = plane_start(n, now)
-        self.rotation = (n, e1, f, t)
-        field = rotating_field_phasor(n, e1, self.p["field_mT"] * 1e-3)
+        self.rotation = (n, e1, f_hz, t)
+        # the complex products stay numpy's: its matrix product, complex multiply and abs round
+        # differently from Python's complex arithmetic (BLAS, SIMD loops), and the bits must not change
+        field = np.array(rotating_field_phasor(n, e1, self.field_t))
         current = self.m_pinv.dot(field)  # (6,) complex A
-        z = impedance_ohm(f, self.p["r_ohm"], self.p["l_h"], self.p["c_f"])
+        z = impedance_ohm(f_hz, *self.rlc)
+        z_abs = abs(z)
         volts = current * z
         amp = np.abs(volts)
-        scale = limit_scale(amp, self.prev_amp, abs(z), self.dt, self.limits)
+        amp_v = amp.tolist()
+        scale = limit_scale(amp_v, self.prev_amp, z_abs, self.dt, self.limits)
         if scale < 1.0:
             volts = volts * scale
             amp = np.abs(volts)
-        phase = np.angle(volts) - (2 * math.pi * f * t) % (2 * math.pi)  # angle 0 at t, in absolute time
-        return {"coil_voltage_amp": amp, "coil_voltage_phase": phase, "drive_freq": np.array(f)}, amp / abs(z)
+            amp_v = amp.tolist()
+        # np.angle(volts), less its call overhead; angle 0 at t, in absolute time
+        phase = np.arctan2(volts.imag, volts.real) - (2 * math.pi * f_hz * t) % (2 * math.pi)
+        out = {"coil_voltage_amp": amp, "coil_voltage_phase": phase, "drive_freq": np.array(f_hz)}
+        return out, amp_v, [a / z_abs for a in amp_v]
 
     def _deliver(self, t: float, out: dict[str, np.ndarray]) -> Fault | None:
         """Start the rig at the first command, hand it this tick's phasors, check its readings."""
@@ -199,7 +217,7 @@ class InverseMagnetics(Component):
         if self.tripped is None:
             self.tripped = fault
         self.rotation = None
-        self.prev_amp = np.zeros(6)
+        self.prev_amp = ZERO_6
         failures = self.rig.stop()
         if failures:
             self.tripped = Fault(self.tripped.name, f"{self.tripped.message}; stopping the outputs: "

@@ -17,7 +17,7 @@ import numpy as np
 from cosim.contract.params import Param, read_params
 from cosim_plugins.controllers.common import PathController, SolveTimer
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
-from cosim_plugins.vec3 import all_finite, norm
+from cosim_plugins.vec3 import Vec3, add, all_finite, div, length, scale, sub
 
 PARAMS = {
     "speed_mm_s": Param(20.0, "cruise speed [mm/s]", 0.0, 200.0),
@@ -43,7 +43,7 @@ class PIController(PathController):
         self.i_max = p["i_max_mm_s"] * 1e-3
         self.m_per_hz = p["speed_per_hz_mm_s"] * 1e-3
         self.f_max = p["f_max_hz"]
-        self.integral = np.zeros(3)
+        self.integral: Vec3 = (0.0, 0.0, 0.0)  # [m/s]
 
     def step(self, t, inputs):
         with SolveTimer() as timer:
@@ -54,24 +54,25 @@ class PIController(PathController):
         if not all_finite(pos):
             return np.zeros(3)
         target, closest, at_end = self.pursuit.reference(pos, vel, t)
-        to_target = target - pos
-        dist = norm(to_target)
+        pos_m = tuple(pos.tolist())
+        to_target = sub(tuple(target.tolist()), pos_m)
+        dist = length(to_target)
         speed = self.speed * (min(dist / self.pursuit.lookahead_m, 1.0) if at_end else 1.0)
-        cross = closest - pos
-        self.integral = _clip_norm(self.integral + self.ki * cross * self.dt, self.i_max)
-        v_des = speed * to_target / max(dist, 1e-9) + self.kp * cross + self.integral
+        cross_m = sub(tuple(closest.tolist()), pos_m)
+        self.integral = _clip_norm(add(self.integral, scale(scale(cross_m, self.ki), self.dt)), self.i_max)
+        v_des = add(add(div(scale(to_target, speed), max(dist, 1e-9)), scale(cross_m, self.kp)), self.integral)
         return velocity_to_omega(v_des, self.m_per_hz, self.f_max)
 
 
-def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
-    n = norm(v)
-    return v if n <= limit else v * (limit / n)
+def _clip_norm(v: Vec3, limit: float) -> Vec3:
+    n = length(v)
+    return v if n <= limit else scale(v, limit / n)
 
 
-def velocity_to_omega(v_des_m_s: np.ndarray, m_per_hz: float, f_max_hz: float) -> np.ndarray:
-    """Rotation vector [rad/s] that swims at ``v_des`` (3,) [m/s]: along it, 2 pi f with f = |v| / m_per_hz."""
-    speed = norm(v_des_m_s)
+def velocity_to_omega(v_des_m_s: Vec3, m_per_hz: float, f_max_hz: float) -> np.ndarray:
+    """Rotation vector (3,) [rad/s] that swims at ``v_des`` [m/s]: along it, 2 pi f with f = |v| / m_per_hz."""
+    speed = length(v_des_m_s)
     if speed < 1e-12:
         return np.zeros(3)
     f = min(speed / m_per_hz, f_max_hz)
-    return v_des_m_s / speed * (2 * math.pi * f)
+    return np.array(scale(div(v_des_m_s, speed), 2 * math.pi * f))

@@ -22,6 +22,7 @@ class PurePursuit:
         self.index: int | None = None
         self._pts: np.ndarray | None = None  # the polyline the spacing below belongs to
         self._spacing_m = 0.0
+        self._coords: np.ndarray | None = None  # the polyline's (3, n) coordinate rows
 
     def reference(self, position_m: np.ndarray, velocity_m_s: np.ndarray, t_s: float):
         """``(target (3,), closest (3,), at_end)`` for the swimmer at ``position_m``."""
@@ -29,7 +30,8 @@ class PurePursuit:
         n = len(pts)
         if pts is not self._pts:  # a static path returns the same array every step
             self._pts, self._spacing_m = pts, norm(pts[1] - pts[0])
-        self.index = self._closest(pts, position_m)
+            self._coords = np.ascontiguousarray(pts.T)  # (3, n): x, y, z rows, for _closest
+        self.index = self._closest(self._coords, position_m)
         ahead = int(round((self.lookahead_m + self.gain_s * norm(velocity_m_s)) / self._spacing_m))
         target_idx = self.index + ahead
         at_end = False
@@ -39,10 +41,11 @@ class PurePursuit:
             target_idx, at_end = n - 1, True
         return pts[target_idx], pts[self.index], at_end
 
-    def _closest(self, pts: np.ndarray, position_m: np.ndarray) -> int:
-        """Index of the point of ``pts`` (n, 3) [m] closest to ``position_m``: over the whole
-        path the first time, then in the window around the last index (wrapping if closed)."""
-        n = len(pts)
+    def _closest(self, coords: np.ndarray, position_m: np.ndarray) -> int:
+        """Index of the path point closest to ``position_m`` (3,) [m], given the path's
+        coordinates ``coords`` (3, n) [m]: over the whole path the first time, then in the
+        window around the last index (wrapping if closed)."""
+        n = coords.shape[1]
         if self.index is None:
             start, stop = 0, n
         else:
@@ -50,10 +53,14 @@ class PurePursuit:
             if not self.path.closed:
                 start, stop = max(start, 0), min(stop, n)
         if 0 <= start and stop <= n:
-            window = pts[start:stop]  # a view: no copy
-        else:  # a closed path's window across its start
-            window = pts[np.arange(start, stop) % n]
-        d = window - position_m
+            window = coords[:, start:stop]  # a view: no copy
+        elif stop - start <= n:  # a closed path's window across its start: its end, then its beginning
+            window = np.concatenate((coords[:, start % n:], coords[:, :stop % n]), axis=1)
+        else:  # a closed path shorter than the window: points repeat
+            window = coords[:, np.arange(start, stop) % n]
+        # squared distances, (dx^2 + dy^2) + dz^2: coordinate rows make each operation one
+        # contiguous sweep (an (m, 3) layout costs twice as much)
+        d = window - position_m[:, None]
         d *= d
-        d2 = d[:, 0] + d[:, 1] + d[:, 2]  # the squared distances, faster than d.sum(axis=1) on (m, 3)
+        d2 = d[0] + d[1] + d[2]
         return (start + int(d2.argmin())) % n

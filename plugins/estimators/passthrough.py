@@ -6,6 +6,7 @@ import numpy as np
 
 from cosim import Component, Port
 from cosim.contract.params import read_params
+from cosim_plugins.vec3 import all_finite
 
 
 class Passthrough(Component):
@@ -28,7 +29,7 @@ class Passthrough(Component):
 
     def step(self, t, inputs):
         z = inputs["position"]
-        if np.all(np.isfinite(z)):
+        if all_finite(z):
             if self.t_last is not None and t > self.t_last:
                 self.velocity = (z - self.position) / (t - self.t_last)
             self.position, self.t_last = z, t
