@@ -164,7 +164,7 @@ class InverseMagnetics(Component):
                  ) -> tuple[dict[str, np.ndarray], list[float], list[float]]:
         """The outputs for ``omega_rad_s`` (spinning at ``f_hz`` = |omega| / 2 pi) at ``t`` within the
         shaping limits, with the six voltage amplitudes [V] and the six current amplitudes [A] as floats."""
-        if f_hz < self.f_min_hz or self.field_mT == 0.0:
+        if f_hz < self.f_min_hz or f_hz == 0.0 or self.field_mT == 0.0:  # no rotation: no field
             self.rotation = None
             return self.zero, ZERO_6, ZERO_6
         n = div(omega_rad_s, 2 * math.pi * f_hz)
