@@ -45,6 +45,8 @@ class RawLogFile:
 
 
 class SwimmerView(RunView):
+    """The tank, the swimmer's axis and the field in 3D, the command and coil currents over time, log.csv."""
+
     roles = {"omega": "controller.omega", "axis": "plant.axis",
              "field": "plant.field", "coil_current": "plant.coil_current_amp"}
     files = {"log": "log.csv"}

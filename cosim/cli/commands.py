@@ -48,7 +48,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
     p.set_defaults(func=cmd_schema)
 
-    p = sub.add_parser("plugins", help="list registered components, paths, models and effects")
+    p = sub.add_parser("plugins", help="list what the installed plugins register, by kind (components, paths, ...)")
     p.set_defaults(func=cmd_plugins)
 
     p = sub.add_parser("replay", help="open a run's recording in the rerun viewer (--web: in a browser)")
@@ -181,9 +181,11 @@ def cmd_plugins(args) -> int:
         entries = registry(kind)
         print(f"{kind}s:")
         for name, obj in sorted(entries.items()):
-            doc = " ".join((getattr(obj, "doc", None) or getattr(obj, "__doc__", None) or "").split())
+            own_doc = None if isinstance(obj, (dict, list, tuple)) else getattr(obj, "__doc__", None)  # not dict's
+            doc = " ".join((getattr(obj, "doc", None) or own_doc or "").split())
             first = re.split(r"\.\s+(?=[A-Z])", doc, maxsplit=1)[0].rstrip(".") + "." if doc else ""
-            print(textwrap.fill(first, width=110, initial_indent=f"  {name:24s} ", subsequent_indent=" " * 27))
+            print(textwrap.fill(first, width=110, initial_indent=f"  {name:24s} ", subsequent_indent=" " * 27)
+                  if first else f"  {name}")
     return 0
 
 

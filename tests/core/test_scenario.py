@@ -33,6 +33,15 @@ def test_unknown_field_is_named_with_its_line(tmp_path):
     assert "speedup (line 3): unknown field" in str(err.value)
 
 
+def test_a_recorded_role_is_the_frameworks_or_a_registered_views(tmp_path):
+    bound = load_scenario(write(tmp_path, GOOD + "record: {omega: a.position, truth: null}\n"))
+    assert bound.record.ports()["omega"] == "a.position" and bound.record.ports()["truth"] is None
+    assert bound.record.ports()["axis"] == "plant.axis"  # the swimmer's view's default
+    with pytest.raises(ScenarioError) as err:
+        load_scenario(write(tmp_path, GOOD + "record: {omegaa: a.position}\n"))
+    assert "unknown role 'omegaa'" in str(err.value) and "omega, " in str(err.value)
+
+
 def test_bad_value_is_named_with_its_line(tmp_path):
     path = write(tmp_path, GOOD.replace("duration_s: 1", "duration_s: -2"))
     with pytest.raises(ScenarioError) as err:
