@@ -87,7 +87,6 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_certs)
 
 
-
 def cmd_run(args) -> int:
     from cosim.runtime.runner import RunRequest, run
     from cosim.scenario.schema import load_scenario

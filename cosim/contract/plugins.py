@@ -20,15 +20,10 @@ import pluggy
 from cosim.contract import hookspecs
 from cosim.contract.errors import UserError
 
-#: The kinds of things the framework's own hooks provide, by the hook that provides them; a
-#: domain adds kinds with hooks of its own (see ``cosim_addhooks``): kind ``K`` is provided by
-#: the hook ``cosim_register_Ks``.
-KINDS = {
-    "component": "cosim_register_components",
-    "path": "cosim_register_paths",
-    "profile": "cosim_register_profiles",
-    "view": "cosim_register_views",
-}
+#: The kinds of things the framework's own hooks provide, in the order ``cosim plugins`` lists
+#: them; kind ``K`` is provided by the hook ``cosim_register_Ks``, and a domain adds kinds with
+#: hooks of its own named so (see ``cosim_addhooks``).
+KINDS = ("component", "path", "profile", "view")
 
 #: The module name of a plugin file loaded by :func:`load_plugin_file` starts so.
 USER_PLUGIN_PREFIX = "cosim_user_plugin_"
@@ -87,15 +82,15 @@ def registry(kind: str) -> dict[str, Any]:
 
 
 def hook_name(kind: str) -> str:
-    return KINDS.get(kind, f"cosim_register_{kind}s")
+    return f"cosim_register_{kind}s"
 
 
 def kinds() -> list[str]:
-    """Every kind some hook provides: the framework's and those domains added."""
-    pm = get_plugin_manager()
-    added = [name[len("cosim_register_"):-1] for name in vars(pm.hook)
+    """Every kind some hook provides: the framework's, then those domains added."""
+    hooks = vars(get_plugin_manager().hook)
+    added = [name[len("cosim_register_"):-1] for name in hooks
              if name.startswith("cosim_register_") and name.endswith("s") and name != "cosim_register_commands"]
-    return [*KINDS, *(k for k in added if k not in KINDS and hook_name(k) not in KINDS.values())]
+    return [*KINDS, *(k for k in added if k not in KINDS)]
 
 
 def command_groups() -> list:

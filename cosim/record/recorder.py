@@ -32,6 +32,7 @@ import numpy as np
 
 from cosim.scenario.paths import distance_to_path
 from cosim.scenario.schema import Scenario
+from cosim.runtime.portcache import port_slots
 from cosim.runtime.wiring import Wiring
 
 #: longest stretch of wall time, and of simulated time [s], not yet written out
@@ -55,6 +56,9 @@ class TraceRecorder:
         self.files: dict[str, Path] = {}
         self.tracking_error_m = np.full(n, np.nan)  # (n,) distance of truth to path [m], as far as drawn
         self.roles = scenario.record.ports()  # {role: "component.port" or None}
+        truth = self.signal("truth", 0, 0)
+        #: whether the run has a tracking error: a path, and a ``truth`` role recording positions
+        self.tracks_path = path is not None and truth is not None and truth.shape[1:] == (3,)
         #: the layout's views the components add for what they log themselves
         self.views = [v for c in wiring.order for v in wiring.classes[c].recording_views(c)]
         self._batch_ticks = max(int(round(FLUSH_EVERY_S / scenario.dt_s)), 1)
@@ -62,26 +66,20 @@ class TraceRecorder:
         self._part = self._rrd = None
         self._files: dict = {}  # the views' files, by key
 
-    @property
-    def tracks_path(self) -> bool:
-        """Whether the run has a tracking error: a path, and a ``truth`` role recording positions."""
-        truth = self.signal("truth", 0, 0)
-        return self.path is not None and truth is not None and truth.shape[1:] == (3,)
-
     def open(self) -> None:
         """Create the output files (headers only); called before the first tick."""
         from cosim.record import rerun_log
         from cosim.record.views import registered_views
 
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        views = [view for view in registered_views().values() if view.applies(self)]
-        for view in views:
+        run_views = [view for view in registered_views().values() if view.applies(self)]
+        for view in run_views:
             self._files.update(view.open_files(self, self.out_dir))
         self.files.update({key: file.path for key, file in self._files.items()})
         layout = [[f"{c}.{p}", list(a.shape[1:])] for (c, p), a in self.arrays.items()]
         (self.out_dir / "trace.part.json").write_text(json.dumps({"dtype": "<f8", "columns": [["t_s", []], *layout]}))
         self._part = open(self.out_dir / "trace.part", "wb")
-        self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self, views, self.views)
+        self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self, run_views, self.views)
         self.files["recording"] = self.out_dir / "recording.rrd"
 
     def on_tick(self, tick: int, t: float, rows: dict[str, np.ndarray]) -> None:
@@ -160,14 +158,11 @@ class TraceRecorder:
 
 def _port_views(comp: str, ports, rows: np.ndarray):
     """``((comp, port), (n, *shape) view)`` of each port into its component's ``rows`` (n, width)."""
-    start = 0
-    for port in ports:
-        size = int(np.prod(port.shape))
-        view = rows[:, start] if port.shape == () else rows[:, start:start + size].reshape(len(rows), *port.shape)
+    for port, (start, end, _) in zip(ports, port_slots(ports)):
+        view = rows[:, start] if port.shape == () else rows[:, start:end].reshape(len(rows), *port.shape)
         if not np.may_share_memory(view, rows):  # a copy would never see the ticks recorded
             raise AssertionError(f"{comp}.{port.name}: not a view of the component's rows")
         yield (comp, port.name), view
-        start += size
 
 
 def load_trace(run_dir: str | Path) -> dict[str, np.ndarray]:

@@ -4,7 +4,7 @@ A component's outputs travel as one message per tick (see
 :meth:`cosim.runtime.stepper.Stepper.step`), and are kept so: per producing
 component, its few most recent rows, each the flat float64 array of the
 message (a row costs one store; a port's value is a view into it, made
-when a consumer reads it). :class:`PortStore` keeps them; a consumer over a delayed edge
+when a consumer reads it, see :func:`port_slots`). :class:`PortStore` keeps them; a consumer over a delayed edge
 reads the previous tick's row even after the producer published a newer one.
 :class:`PortCache` fills a store from zenoh FIFO channels, one per producing
 component (no Python callback thread: a local put lands in the channel
@@ -41,14 +41,13 @@ class PortStore:
 
     def __init__(self, outputs: dict, keep: int = 3):
         #: per component and port, (start, end, shape or None for a vector) in the component's rows
-        self._slots = {c: {p.name: slot for p, slot in zip(ports, _slots(ports))} for c, ports in outputs.items()}
+        self._slots = {c: {p.name: slot for p, slot in zip(ports, port_slots(ports))} for c, ports in outputs.items()}
         self._sizes = {c: sum(int(np.prod(p.shape)) for p in ports) for c, ports in outputs.items()}
         self._rows: dict[str, dict[int, np.ndarray]] = {c: {} for c in outputs}
         self._keep = keep
 
     def slot(self, comp: str, port: str) -> tuple[int, int, tuple | None]:
-        """Where ``comp.port`` lies in ``comp``'s rows: ``(start, end, shape)``, shape None for a
-        vector (the slice is the value); see :func:`port_value`."""
+        """Where ``comp.port`` lies in ``comp``'s rows (see :func:`port_slots`)."""
         return self._slots[comp][port]
 
     def store_payload(self, comp: str, ticks: list[int], payload: bytes) -> None:
@@ -77,13 +76,6 @@ class PortStore:
         except KeyError:
             raise PortTimeout(comp, None, stamp) from None
 
-    def get(self, comp: str, port: str, stamp: int, timeout_s: float = 0.0) -> np.ndarray:
-        """The value of ``comp.port`` produced at tick ``stamp``."""
-        try:
-            return port_value(self.row(comp, stamp, timeout_s), *self._slots[comp][port])
-        except PortTimeout:
-            raise PortTimeout(comp, port, stamp) from None
-
 
 class PortCache(PortStore):
     """A store subscribed to the outputs of the components in ``outputs`` of run ``run_id``
@@ -96,11 +88,10 @@ class PortCache(PortStore):
 
     def _drain(self, comp: str) -> None:
         """Move what has arrived from one component into the store."""
-        sub, rows = self._subs[comp], self._rows[comp]
+        sub = self._subs[comp]
         while (sample := sub.try_recv()) is not None:
-            rows[bus.decode_tick(sample.attachment.to_bytes())] = np.frombuffer(sample.payload.to_bytes(), dtype="<f8")
-            if len(rows) > self._keep:
-                del rows[next(iter(rows))]
+            self.store(comp, bus.decode_tick(sample.attachment.to_bytes()),
+                       np.frombuffer(sample.payload.to_bytes(), dtype="<f8"))
 
     def has(self, comp: str, stamp: int) -> bool:
         if stamp not in self._rows[comp]:
@@ -140,16 +131,12 @@ def expected_stamp(tick: int, period: int, delay: int) -> int:
     return -1 if k < 0 else (k // period) * period
 
 
-def _slots(ports) -> list[tuple[int, int, tuple | None]]:
+def port_slots(ports) -> list[tuple[int, int, tuple | None]]:
+    """``(start, end, shape)`` of each of ``ports`` (declared order) in its component's flat row:
+    ``row[start:end]`` is a vector port's value as it is (shape None), else reshaped to ``shape``."""
     out, start = [], 0
     for port in ports:
         size = int(np.prod(port.shape))
         out.append((start, start + size, None if len(port.shape) == 1 else port.shape))
         start += size
     return out
-
-
-def port_value(row: np.ndarray, start: int, end: int, shape: tuple | None) -> np.ndarray:
-    """A port's value: a read-only view into its component's flat ``row``."""
-    value = row[start:end]
-    return value if shape is None else value.reshape(shape)

@@ -17,7 +17,7 @@ import zenoh
 from cosim.runtime import bus
 from cosim.contract.component import Component, ComponentError, ComponentFault
 from cosim.scenario.paths import make_path
-from cosim.runtime.portcache import PortStore, PortTimeout
+from cosim.runtime.portcache import PortStore, PortTimeout, port_slots
 from cosim.scenario.schema import Scenario
 from cosim.runtime.wiring import Wiring
 
@@ -63,12 +63,9 @@ class Stepper:
                         for e in wiring.edges_into(name)]
         self._ports = {p.name: p.shape for p in wiring.outputs[name]}
         #: (port, shape, start, end) of each output in the published row
-        self._slots, start = [], 0
-        for port in wiring.outputs[name]:
-            size = int(np.prod(port.shape))
-            self._slots.append((port.name, port.shape, start, start + size))
-            start += size
-        self._size = start
+        ports = wiring.outputs[name]
+        self._slots = [(p.name, p.shape, start, end) for p, (start, end, _) in zip(ports, port_slots(ports))]
+        self._size = self._slots[-1][3] if self._slots else 0
         # a component without outputs (a scope, a logger) publishes nothing
         self._pub = bus.publisher(session, bus.outputs_key(run_id, name)) if self._ports else None
         #: the row last published: [every output, flat, in the declared port order] (or [] before any)
@@ -81,7 +78,7 @@ class Stepper:
         row, timeout = self.cache.row, self.timeout_s
         inputs = {}
         for dst, src, port, (start, end, shape), period, delay in self._inputs:
-            k = tick - delay
+            k = tick - delay  # expected_stamp(tick, period, delay), inlined: this runs for every input and tick
             try:
                 value = row(src, -1 if k < 0 else k - k % period, timeout)[start:end]
             except PortTimeout as exc:
