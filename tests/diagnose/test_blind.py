@@ -108,3 +108,21 @@ def test_discover_on_logs_too_short_says_so(blind, tmp_path):
     assert r["discovered"]["status"] == "too_short"
     assert "too short to discover" in r["discovered"]["explanation"]
     assert np.isfinite(r["baseline"]["rollout_mm"]["1.0"])
+
+
+@pytest.mark.parametrize("group,effect", [("library", e) for e in blind_sim.LIBRARY]
+                         + [("outside", e) for e in blind_sim.OUTSIDE if e != "periodic"])
+def test_true_form_loads_and_holds_a_start_at_the_truth(group, effect, tmp_path, fresh_plugins):
+    """The bench's reference: the simulator's law as an effect file, its truth a held start (a free start alone
+    can slide into a trade-off, e.g. a lag to tau = 0), a delay reading the path before each window."""
+    from cosim_plugins.identify.effect import known_effects, load_effect_files
+
+    case = blind_sim.draw_case(3, group, effect)
+    path = tmp_path / "true_form.py"
+    path.write_text(case.true_form)
+    load_effect_files([path])
+    form = known_effects()[case.true_form_name]
+    assert form.starts == ({q.name: q.init for q in form.params},)
+    assert (form.lookback is not None) == (effect == "sensor_latency")
+    if form.lookback is not None:
+        assert form.lookback({"delay": 2.5}) == 3 and form.lookback({"delay": 3.0}) == 3
