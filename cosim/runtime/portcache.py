@@ -41,8 +41,9 @@ class PortStore:
 
     def __init__(self, outputs: dict, keep: int = 3):
         #: per component and port, (start, end, shape or None for a vector) in the component's rows
-        self._slots = {c: {p.name: slot for p, slot in zip(ports, port_slots(ports))} for c, ports in outputs.items()}
-        self._sizes = {c: sum(int(np.prod(p.shape)) for p in ports) for c, ports in outputs.items()}
+        slots = {c: port_slots(ports) for c, ports in outputs.items()}
+        self._slots = {c: {p.name: slot for p, slot in zip(ports, slots[c])} for c, ports in outputs.items()}
+        self._sizes = {c: s[-1][1] if s else 0 for c, s in slots.items()}  # the last port's end
         self._rows: dict[str, dict[int, np.ndarray]] = {c: {} for c in outputs}
         self._keep = keep
 

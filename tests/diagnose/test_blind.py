@@ -22,6 +22,7 @@ import pytest
 
 from cosim.contract import plugins
 from cosim_plugins.identify.diagnose import Settings, run
+from cosim_plugins.identify.effect import known_effects, load_effect_files
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -115,8 +116,6 @@ def test_discover_on_logs_too_short_says_so(blind, tmp_path):
 def test_true_form_loads_and_holds_a_start_at_the_truth(group, effect, tmp_path, fresh_plugins):
     """The bench's reference: the simulator's law as an effect file, its truth a held start (a free start alone
     can slide into a trade-off, e.g. a lag to tau = 0), a delay reading the path before each window."""
-    from cosim_plugins.identify.effect import known_effects, load_effect_files
-
     case = blind_sim.draw_case(3, group, effect)
     path = tmp_path / "true_form.py"
     path.write_text(case.true_form)
