@@ -13,6 +13,9 @@ it finishes; at the end one JSON object is printed:
 * ``library``: ``cases``; ``top1`` (fraction whose top-ranked candidate is
   the hidden effect), ``named`` (the verdict names it), the same over the
   ``detectable`` cases (the true form lowers the held-out error by >= 10 %);
+  ``top1_or_tied_detectable`` also counts a detectable case whose hidden effect
+  ranks second within paired t < 3 of the first (the verdict then says the logs
+  cannot tell the two apart);
   ``median_reduction_ratio`` (achieved / true-form reduction, achieved = the
   top-ranked candidate's reduction);
 * ``no_effect``: ``cases``, ``false_alarms`` (an effect named), and
@@ -55,6 +58,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import blind_sim  # noqa: E402  (the independent simulator beside this file)
 
 DETECTABLE = 0.10  # a true-form reduction below this: the effect is invisible in these logs
+MIN_T = 3.0  # the verdict's paired t below which two effects are not told apart
 GOOD_SHARE = 0.5  # discovered_ok: the discovered form reaches this share of the true form's reduction
 
 
@@ -77,7 +81,8 @@ def run_case(case: blind_sim.Case, out: Path) -> dict:
         "truth": case.truth, "regime": case.regime,
         "baseline_mm": diag["baseline"]["rollout_mm"][key], "floor_mm": diag["noise_floor_mm"],
         "top": top["effect"] if top else None, "top_reduction": top["reduction"] if top else 0.0,
-        "top_t": top["t_stat"] if top else 0.0, "named": diag["verdict"]["effect"],
+        "top_t": top["t_stat"] if top else 0.0, "runner_up": (top or {}).get("runner_up"),
+        "named": diag["verdict"]["effect"],
         "status": diag["verdict"]["status"], "fit_notes": diag.get("fit_notes", []),
         "ranking": [[e["effect"], round(e["reduction"], 4)] for e in diag["ranking"]],
         "discovered": {k: found.get(k) for k in ("status", "reduction", "t_stat", "terms", "words")},
@@ -118,6 +123,11 @@ def summarise(records: list[dict]) -> dict:
     def frac(rows, pred):
         return round(sum(1 for r in rows if pred(r)) / len(rows), 3) if rows else None
 
+    def tied(r):  # the truth ranked second and not told apart from the first (the verdict says so)
+        rival = r.get("runner_up") or {}
+        return (r["top"] == r["effect"] or rival.get("effect") == r["effect"] and rival.get("t_stat", MIN_T) < MIN_T
+                and (rival.get("reduction") or 0.0) >= DETECTABLE)
+
     def ratio(r):
         return r["top_reduction"] / r["true_reduction"] if r["top"] == r["effect"] else 0.0
 
@@ -141,6 +151,7 @@ def summarise(records: list[dict]) -> dict:
                     "named": frac(lib, lambda r: r["named"] == r["effect"]),
                     "detectable": len(det), "top1_detectable": frac(det, lambda r: r["top"] == r["effect"]),
                     "named_detectable": frac(det, lambda r: r["named"] == r["effect"]),
+                    "top1_or_tied_detectable": frac(det, tied),
                     "median_reduction_ratio": round(float(np.median([ratio(r) for r in det])), 3) if det else None,
                     "by_effect": by_effect},
         "no_effect": {"cases": len(none), "false_alarms": sum(1 for r in none if r["named"]),

@@ -34,7 +34,7 @@ from cosim_plugins.raw_log import read_logs
 from cosim.contract.errors import UserError
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
-from cosim_plugins.identify.joint import JointModel, fit_joint, supports_effects
+from cosim_plugins.identify.joint import JointModel, OpenLoop, fit_joint, supports_effects
 from cosim_plugins.identify.localise import localise, window_features
 from cosim_plugins.identify.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.identify.timeline import Timeline
@@ -52,6 +52,8 @@ HOLDOUT_EVERY = 3  # split: every third block is held out
 MIN_FIT_WINDOWS = 60
 MIN_EVAL_WINDOWS = 30
 SCORE_WINDOWS = 100  # training windows whose open-loop error picks a fit's start
+POLISH_WINDOWS = 250  # training windows of the open-loop polish (another sample)
+DISCOVER_WINDOWS = 400  # training windows of the discovery's regression (another sample)
 EFFECT_MODEL = "physical"
 DISCOVERED_FILE = "discovered_effect.py"
 DISCOVER_ABOVE_FLOOR = 1.5  # a named effect leaving more than this x the floor: discovery runs too
@@ -137,17 +139,22 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         r = jm.evaluate(ttr, score_starts, lead, {s.reference: steps[s.reference]})[s.reference]
         return float(np.mean(np.linalg.norm(r["err"][r["valid"]], axis=1))) if r["valid"].any() else np.inf
 
-    baseline = _fit_model(s.model, dtr, ttr, fit_starts, fit_len, s, say, score)
+    # every fit then goes on on the open-loop errors up to the reference horizon: what the diagnosis measures
+    train_open = ttr.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE]
+    polish = OpenLoop.upto(_sample(train_open, POLISH_WINDOWS, s.seed + 1), lead, steps[s.reference])
+    open_train = OpenLoop.upto(_sample(train_open, DISCOVER_WINDOWS, s.seed + 2), lead, steps[s.reference])
+
+    baseline = _fit_model(s.model, dtr, ttr, fit_starts, fit_len, s, say, score, polish)
     base_ev, base_sum = evaluate(baseline)
     say(f"baseline {s.model}: held-out error {_fmt(base_sum['rollout_mm'])}")
     reference = baseline if supports_effects(baseline.host) else _fit_model(EFFECT_MODEL, dtr, ttr, fit_starts,
-                                                                            fit_len, s, say, score)
+                                                                            fit_len, s, say, score, polish)
     ref_ev, ref_sum = (base_ev, base_sum) if reference is baseline else evaluate(reference)
     fitted = [reference]
     added_out, after = None, None
     if added:
         say(f"adding {', '.join(e.name for e in added)} ...")
-        after = _with_effects(reference, added, ttr, fit_starts, fit_len, s, say, score)
+        after = _with_effects(reference, added, ttr, fit_starts, fit_len, s, say, score, polish)
         after_ev, after_sum = evaluate(after.model)
         added_out = {"effects": [e.name for e in added], "params": after.params, "std": after.std,
                      "before_mm": ref_sum["rollout_mm"], "rollout_mm": after_sum["rollout_mm"],
@@ -160,7 +167,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     block_rows = max(1, int(round(VERDICT_BLOCK_S / dt)))
     for effect in candidates:
         say(f"candidate {effect.name} ...")
-        cand = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None, score)
+        cand = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None, score, polish)
         ev, summ = evaluate(cand.model)
         ranking.append(_rank_entry(effect, cand, ev, summ, ref_ev, ref_sum, s.reference, test_starts, block_rows))
         fitted.append(cand.model)
@@ -199,7 +206,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     source = None
     if s.discover or result["verdict"]["status"] == "unexplained" or _left_above_floor(result, s.reference):
         result["discovered"], source = _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev,
-                                                 ref_sum, s, dt, evaluate, say, score)
+                                                 ref_sum, s, dt, evaluate, say, score, polish, open_train)
         result["verdict"] = verdict(result, s.reference)
     result["timing_s"] = round(time.perf_counter() - t_start, 2)
     curves = {f"{s.model} (baseline)": base_sum["rollout_mm"], "noise floor": floor}
@@ -229,7 +236,8 @@ def _left_above_floor(result: dict, key: str) -> bool:
     return left > DISCOVER_ABOVE_FLOOR * floor
 
 
-def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref_sum, s, dt, evaluate, say, score):
+def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref_sum, s, dt, evaluate, say, score,
+              polish, train):
     """(result["discovered"], effect file source or None): the sparse regression of :mod:`.discover`."""
     from cosim_plugins.identify.discover import discover
 
@@ -237,11 +245,12 @@ def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref
         return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None
 
     def refit(effect):
-        fitted = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None, score)
+        fitted = _with_effects(reference, [effect], ttr, fit_starts, fit_len, s, None, score, polish)
         ev, summ = evaluate(fitted.model)
         return fitted, summ, ev
 
-    found = discover(reference, ttr, fit_starts, fit_len, tte, test_starts, refit, say)
+    test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
+    found = discover(reference, ttr, tte, train, test, refit, say)
     if found["status"] != "found":
         return found, None
     summ, ev = found.pop("summary"), found.pop("ev")
@@ -312,7 +321,7 @@ class _Fitted:
     identifiable: bool = True
 
 
-def _fit_model(name, dtr, ttr, starts, length, s: Settings, say, score=None) -> JointModel:
+def _fit_model(name, dtr, ttr, starts, length, s: Settings, say, score=None, polish=None) -> JointModel:
     """Fit a registered model on the training data; a parametric one is then refined on the windows.
 
     A parametric model's refit also starts from the integrated equation-error fit begun at the
@@ -336,7 +345,7 @@ def _fit_model(name, dtr, ttr, starts, length, s: Settings, say, score=None) -> 
     jm = JointModel(model)
     if supports_effects(model):
         fit_joint(jm, ttr, starts, length, max_nfev=nfev, fresh_starts=[_host_init(jm.host)], progress=say,
-                  score=score)
+                  score=score, polish=polish)
     return jm
 
 
@@ -345,7 +354,7 @@ def _host_init(host) -> dict:
     return {q.name: q.init for q in host.all_params() if "." not in q.name}
 
 
-def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, say, score=None) -> _Fitted:
+def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, say, score=None, polish=None) -> _Fitted:
     """The reference model plus ``effects``, all parameters refitted jointly.
 
     Starts: the reference's parameters with each effect's starts (its listed ones and those drawn
@@ -361,7 +370,7 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, sa
     host0 = _host_init(base_host)
     fresh = [host0] + [{**host0, **st} for st in extra]  # the effects' own starts held while the host adapts
     res = fit_joint(jm, ttr, starts, length, max_nfev=s.max_nfev, extra_starts=extra, fresh_starts=fresh,
-                    progress=say, score=score)
+                    progress=say, score=score, polish=polish)
     own = [q for e in effects for q in e.param_names()]
     units = {q.name: q.unit for q in jm.param_list}
     std = {n: (float(res.std[n]) if np.isfinite(res.std[n]) else None) for n in own}
@@ -378,8 +387,9 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, sa
 
 def velocity_time_constant(jm: JointModel) -> float | None:
     """The physical host's velocity time constant m / Cd1 [s] (the drag along the swimmer's axis, where it
-    mostly swims: sin(alpha) ~ 0); None for hosts without a drag parameter, inf without drag."""
-    prm = jm.prm
+    mostly swims: sin(alpha) ~ 0) in its short-window fit (the open-loop polish can trade the velocity
+    response against a drift); None for hosts without a drag parameter, inf without drag."""
+    prm = jm.window_params or jm.prm
     if "Cd1" not in prm or "mass_mg" not in jm.host.options:
         return None
     return jm.host.options["mass_mg"] / (1000.0 * prm["Cd1"]) if prm["Cd1"] > 0 else float("inf")

@@ -11,10 +11,11 @@ output-error setting as the effect fits:
 
 1. each term j, a force ``coefficient x feature_j(p, v, u) e_axis``, is added
    to the reference model with coefficient 0, and the sensitivity of the
-   predicted positions of the training windows (initial states eliminated)
-   to its coefficient is taken by a finite difference; the host model's own
-   parameters get columns too and are projected out (they stay free);
-2. forward selection fits the training windows' position residuals with
+   open-loop predictions of the training windows (initial state solved on
+   the lead-in, every step up to the reference horizon) to its coefficient
+   is taken by a finite difference; the host model's own parameters get
+   columns too and are projected out (they stay free);
+2. forward selection fits the training windows' open-loop errors with
    1, 2, ... :data:`MAX_TERMS` terms; the number of terms is chosen on the
    *held-out* windows (the sparsest form that keeps 80 % of the largest drop
    of held-out error), and a drop that is not significant (paired t over
@@ -42,6 +43,7 @@ WALL_MM = 75.0  # the tank's half size: walls at +-75 mm
 FD_STEP = 1e-3  # coefficient perturbation for the sensitivities, in units of the term's scale
 MIN_TRAIN_WINDOWS = 300
 MIN_TEST_WINDOWS = 60
+MAX_TEST_WINDOWS = 400  # held-out windows of the regression (an even sample)
 CHOICE_TOLERANCE = 0.2  # sparsest form keeping 80 % of the best held-out gain
 MAX_TERMS = 12  # a form with more terms is not an explanation
 COLLINEAR = 1e-3  # a term whose part outside the chosen ones is below this share of it ends the selection
@@ -129,26 +131,30 @@ def _coef_unit(t: Term) -> str:
 # ---------------------------------------------------------------- the regression
 
 
-def discover(reference, ttr, fit_starts, fit_len, tte, test_starts, fit_fn, say=None) -> dict:
+def discover(reference, ttr, tte, train, test, fit_fn, say=None) -> dict:
     """Sparse residual-force regression on top of ``reference`` (a fitted JointModel).
 
+    ``train`` and ``test`` are :class:`~cosim_plugins.identify.joint.OpenLoop` windows of the training and
+    held-out timelines ``ttr`` and ``tte``: the residuals are their open-loop errors, what the diagnosis
+    measures (on short windows whose whole initial state is fitted, a slow drift hides in that state).
     ``fit_fn(effect) -> (_Fitted, summary, ev)`` refits the reference with an effect and evaluates it
     on the held-out data (the diagnosis's own refit). Returns a dict with ``status`` ("found",
     "none", "too_short"), ``explanation`` (a sentence), and when found ``terms``, ``params``,
     ``words``, ``source`` (the effect file) and the refit's ``fitted``/``summary``/``ev``.
     """
-    from cosim_plugins.identify.joint import JointModel
+    from cosim_plugins.identify.joint import JointModel, OpenLoop
 
     say = say or (lambda m: None)
-    test_win = tte.window_starts(fit_len, 0.7 * float(np.mean(tte.measured)))
-    if len(fit_starts) < MIN_TRAIN_WINDOWS or len(test_win) < MIN_TEST_WINDOWS:
+    span = train.lead + max(train.steps)
+    if len(train.starts) < MIN_TRAIN_WINDOWS or len(test.starts) < MIN_TEST_WINDOWS:
         return {"status": "too_short",
                 "explanation": f"the logs are too short to discover the form of a missing effect: "
-                               f"{len(fit_starts)} training and {len(test_win)} held-out windows of "
-                               f"{fit_len * ttr.dt_s:g} s (need {MIN_TRAIN_WINDOWS} and {MIN_TEST_WINDOWS}); "
+                               f"{len(train.starts)} training and {len(test.starts)} held-out windows of "
+                               f"{span * ttr.dt_s:g} s (need {MIN_TRAIN_WINDOWS} and {MIN_TEST_WINDOWS}); "
                                "give longer logs (a few minutes in all)"}
-    test_win = test_win[:: max(1, len(test_win) // 400)]
-    scales = _term_scales(ttr, fit_starts, fit_len)
+    test = OpenLoop(test.starts[:: max(1, len(test.starts) // MAX_TEST_WINDOWS)], test.lead, test.steps)
+    test_win = test.starts
+    scales = _term_scales(ttr, train.starts, span)
     lib = library_effect(TERMS, scales, name="_library")
     base_host = type(reference.host)(**reference.host.options)
     base_host.dt_s = reference.dt_s
@@ -156,9 +162,9 @@ def discover(reference, ttr, fit_starts, fit_len, tte, test_starts, fit_fn, say=
     n_terms = len(TERMS)
     host_idx = [i for i, n in enumerate(jm.names) if "." not in n]
     term_idx = [jm.names.index(f"_library.{t.name}") for t in TERMS]
-    say(f"discover: sensitivities of {n_terms} candidate terms on {len(fit_starts)} + {len(test_win)} windows")
-    r_tr, J_tr, H_tr = _sensitivities(jm, ttr, fit_starts, fit_len, term_idx, host_idx)
-    r_te, J_te, H_te = _sensitivities(jm, tte, test_win, fit_len, term_idx, host_idx)
+    say(f"discover: sensitivities of {n_terms} candidate terms on {len(train.starts)} + {len(test_win)} windows")
+    r_tr, J_tr, H_tr = _sensitivities(jm, ttr, train, term_idx, host_idx)
+    r_te, J_te, H_te = _sensitivities(jm, tte, test, term_idx, host_idx)
     # the host's own parameters stay free: project their columns out of the training problem
     Q, _ = np.linalg.qr(H_tr)
     Jp = J_tr - Q @ (Q.T @ J_tr)
@@ -241,7 +247,7 @@ def _outside_share(A: np.ndarray, b: np.ndarray) -> float:
 
 def _term_scales(tl, starts, length) -> np.ndarray:
     """(M,) coefficient scales: the force of each term at the data's typical feature size is ~0.1 uN."""
-    rows = (starts[:, None] + np.arange(length)[None, :]).reshape(-1)
+    rows = np.minimum(starts[:, None] + np.arange(length)[None, :], tl.n - 1).reshape(-1)
     x = tl.x_lin[rows]
     u = np.nan_to_num(tl.u[rows])
     ns = _namespace(x[:, :3], x[:, 3:], u)
@@ -250,37 +256,29 @@ def _term_scales(tl, starts, length) -> np.ndarray:
     return 0.1 / np.maximum(rms, 1e-9)
 
 
-def _sensitivities(jm, tl, starts, length, term_idx, host_idx):
-    """(r (N,), J (N, M), H (N, K)): measured minus predicted positions of the windows (initial states
-    eliminated) and their sensitivities to the term coefficients and the host parameters (finite differences)."""
-    from cosim_plugins.identify.joint import targets
-
-    fit_rows = np.ones((len(starts), length + 1), dtype=bool)
-    target = targets(tl, starts, length)
-    use = np.all(np.isfinite(target), axis=2)
+def _sensitivities(jm, tl, windows, term_idx, host_idx):
+    """(r (N,), J (N, M), H (N, K)): measured minus predicted positions of the open-loop ``windows`` and their
+    sensitivities to the term coefficients and the host parameters (finite differences)."""
     theta0 = jm.theta.copy()
-    u_eff = tl.effective_commands(jm.inputs, jm.prm)
 
-    def pred(theta):
+    def pred(theta):  # predicted - measured: its differences are the sensitivities of the prediction
         jm._set(theta)
         with np.errstate(all="ignore"):
-            out, _, _ = jm.projected(tl, starts, length, fit_rows, u_eff=u_eff)
-        return np.where(use[..., None], out, 0.0).reshape(-1)
+            return np.nan_to_num(windows.errors(jm, tl))
 
-    p0 = pred(theta0)
-    r = np.where(use[..., None], np.nan_to_num(target), 0.0).reshape(-1) - p0
+    e0 = pred(theta0)
     scales = jm.scales()
 
     def column(i):
         th = theta0.copy()
         h = FD_STEP * scales[i]
         th[i] += h
-        return (pred(th) - p0) / h
+        return (pred(th) - e0) / h
 
     J = np.stack([column(i) for i in term_idx], axis=1)
     H = np.stack([column(i) for i in host_idx], axis=1)
     jm._set(theta0)
-    return r, J, H
+    return -e0, J, H
 
 
 # ---------------------------------------------------------------- words and the effect file

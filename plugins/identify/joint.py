@@ -18,7 +18,13 @@ a small linear least-squares step on the rollout's sensitivity to them
   Jacobian at the solution;
 * evaluation (:meth:`JointModel.evaluate`): the initial state fits only a
   lead-in of ``lead`` steps, and the open-loop error is read ``K`` steps
-  after the lead-in's last measurement, as an estimator would predict.
+  after the lead-in's last measurement, as an estimator would predict;
+* the open-loop polish (``fit_joint(..., polish=OpenLoop(...))``): the fit
+  goes on minimising those open-loop errors at every step up to the
+  reference horizon. On the short windows the initial state absorbs much of
+  a slow drift (a flow, a too-slow velocity response that keeps an initial
+  velocity) and a delay trades off against the velocity response almost
+  for free; over the horizon the model must predict alone, they do not.
 """
 
 from __future__ import annotations
@@ -40,6 +46,27 @@ EE_NFEV = 15  # evaluations of each equation-error fit
 DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank) [mm]
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
+POLISH_NFEV = 8  # evaluations of the open-loop polish
+
+
+@dataclass(frozen=True)
+class OpenLoop:
+    """Open-loop windows: each starts at ``starts`` (w,), its initial state solved on a lead-in of ``lead``
+    steps, its error read ``k`` steps after the lead-in for every k in ``steps`` (H,)."""
+
+    starts: np.ndarray
+    lead: int
+    steps: tuple
+
+    @classmethod
+    def upto(cls, starts: np.ndarray, lead: int, horizon: int) -> "OpenLoop":
+        """Errors at every step 1 .. ``horizon`` after the lead-in."""
+        return cls(starts, lead, tuple(range(1, horizon + 1)))
+
+    def errors(self, jm: "JointModel", tl) -> np.ndarray:
+        """(w * H * 3,) predicted - measured [mm] (window-major), 0 where a window does not reach step k."""
+        ev = jm.evaluate(tl, self.starts, self.lead, {k: k for k in self.steps}, passes=1)
+        return np.stack([np.where(e["valid"][:, None], e["err"], 0.0) for e in ev.values()], axis=1).reshape(-1)
 
 
 def supports_effects(model) -> bool:
@@ -71,6 +98,7 @@ class JointModel:
         self.names = [q.name for q in self.param_list]
         self.std: dict = {}  # standard errors after fit_joint
         self.conditioning: dict = {}  # after fit_joint, see conditioning()
+        self.window_params: dict = {}  # after fit_joint: the short-window fit's parameters, before any polish
         start = {q.name: q.init for q in self.param_list}
         start.update(host.params() if supports_effects(host) else {})
         start.update(base_params or {})
@@ -199,12 +227,13 @@ class JointModel:
 
     # ------------------------------------------------------------ evaluation
 
-    def evaluate(self, tl, starts: np.ndarray, lead: int, steps: dict):
+    def evaluate(self, tl, starts: np.ndarray, lead: int, steps: dict, passes: int = 2):
         """Open-loop errors ``steps[key]`` steps after a lead-in of ``lead`` steps.
 
         Args:
             starts: (w,) window start rows (the lead-in's first row).
             steps: {horizon key: steps after the lead-in}.
+            passes: Gauss-Newton passes of the initial state's solve (one is exact for a model linear in it).
         Returns:
             {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm]}}; a window whose
             rollout diverged (NaN, or off by more than :data:`DIVERGED_MM`) has an error of DIVERGED_MM
@@ -213,7 +242,7 @@ class JointModel:
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
         fit_rows[:, : lead + 1] = True
         with np.errstate(all="ignore"):  # a model that diverges shows as a huge error, not a warning
-            pred, _, _ = self.projected(tl, starts, length, fit_rows, passes=2)
+            pred, _, _ = self.projected(tl, starts, length, fit_rows, passes=passes)
         target = targets(tl, starts, length)
         out = {}
         for key, k in steps.items():
@@ -267,7 +296,7 @@ class FitResult:
 
 
 def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int = 30,
-              extra_starts=(), fresh_starts=(), progress=None, score=None) -> FitResult:
+              extra_starts=(), fresh_starts=(), progress=None, score=None, polish: OpenLoop | None = None) -> FitResult:
     """Fit all parameters of ``jm`` on windows of ``length`` steps at rows ``starts``.
 
     Starts: the current parameters; each ``extra_starts`` dict ``{name: value}``
@@ -339,13 +368,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
                  for th, held in candidates]
         costs = [cost for _, cost in short]
         if score is not None:  # e.g. the open-loop error at a longer horizon than the windows'
-
-            def scored(th):
-                jm._set(th)
-                value = float(score(jm))
-                return value if np.isfinite(value) else np.inf
-
-            costs = [scored(th) if np.isfinite(cost) else np.inf for th, cost in short]
+            costs = [_scored(jm, th, score) if np.isfinite(cost) else np.inf for th, cost in short]
         best = int(np.argmin(costs))
         start_theta = short[best][0]
     else:
@@ -353,13 +376,19 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     r0 = residual(candidates[best][0])
     res = least_squares(residual, start_theta, bounds=(lo, hi), x_scale=scale, method="trf",
                         max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
-    jm._set(res.x)
     n_used = int(use.sum()) * 3
     rows_used = np.zeros(tl.n, dtype=bool)
     rows_used[(starts[:, None] + np.arange(length + 1)[None, :])[use]] = True
-    std = _standard_errors(res.jac, res.fun, n_used, 3 * int(rows_used.sum()))
-    jm.std = {n: float(x) for n, x in zip(jm.names, std)}
-    jm.conditioning = conditioning(jm, res.x, res.jac)
+    x, jac, fun, n_distinct = res.x, res.jac, res.fun, 3 * int(rows_used.sum())
+    jm.window_params = dict(zip(jm.names, map(float, x)))
+    polished = _polish(jm, tl, polish, x, lo, hi, scale, counter, score, progress) if polish is not None else None
+    if polished is not None:  # the open-loop windows are a sample: their measurements hardly overlap
+        x, jac, fun = polished
+        n_used = n_distinct = int(np.count_nonzero(fun))
+    jm._set(x)
+    std = _standard_errors(jac, fun, n_used, n_distinct)
+    jm.std = {n: float(v) for n, v in zip(jm.names, std)}
+    jm.conditioning = conditioning(jm, x, jac)
     if progress:
         progress(f"fit {len(starts)} windows x {length} steps: rms {math.sqrt(np.mean(r0 ** 2) * r0.size / n_used):.3f}"
                  f" -> {math.sqrt(2 * res.cost / n_used):.3f} mm ({counter['n']} evaluations, "
@@ -368,6 +397,36 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
                      rms_mm=math.sqrt(2 * res.cost / n_used), rms_start_mm=math.sqrt(float(np.sum(r0 ** 2)) / n_used),
                      evaluations=counter["n"], status=int(res.status), start=best,
                      extra={"conditioning": jm.conditioning})
+
+
+def _polish(jm, tl, ol: OpenLoop, theta, lo, hi, scale, counter, score, progress):
+    """The fit refined on the open-loop errors of ``ol``: (theta, Jacobian, residuals), or None when it does not
+    lower ``score``."""
+
+    def residual(th):
+        counter["n"] += 1
+        jm._set(th)
+        with np.errstate(all="ignore"):
+            return np.nan_to_num(ol.errors(jm, tl), nan=DIVERGED_MM, posinf=DIVERGED_MM, neginf=-DIVERGED_MM)
+
+    before = _scored(jm, theta, score)
+    r = least_squares(residual, jm.clip(theta), bounds=(lo, hi), x_scale=scale, method="trf",
+                      max_nfev=POLISH_NFEV, ftol=1e-6, xtol=1e-7)
+    after = _scored(jm, r.x, score)
+    keep = after < before if score is not None else True
+    if progress:
+        progress(f"open-loop polish on {len(ol.starts)} windows x {max(ol.steps)} steps: "
+                 + (f"score {before:.3f} -> {after:.3f} mm ({'kept' if keep else 'not kept'})" if score is not None
+                    else f"rms {math.sqrt(2 * r.cost / max(np.count_nonzero(r.fun), 1)):.3f} mm"))
+    return (r.x, r.jac, r.fun) if keep else None
+
+
+def _scored(jm, theta, score) -> float:
+    if score is None:
+        return 0.0
+    jm._set(theta)
+    value = float(score(jm))
+    return value if np.isfinite(value) else np.inf
 
 
 def _distinct(candidates: list, scale: np.ndarray) -> list:
