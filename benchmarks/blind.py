@@ -123,7 +123,7 @@ def summarise(records: list[dict]) -> dict:
     def frac(rows, pred):
         return round(sum(1 for r in rows if pred(r)) / len(rows), 3) if rows else None
 
-    def tied(r):  # the truth ranked second and not told apart from the first (the verdict says so)
+    def top_or_tied(r):  # the truth first, or ranked second and not told apart from the first (the verdict says so)
         rival = r.get("runner_up") or {}
         return (r["top"] == r["effect"] or rival.get("effect") == r["effect"] and rival.get("t_stat", MIN_T) < MIN_T
                 and (rival.get("reduction") or 0.0) >= DETECTABLE)
@@ -151,7 +151,7 @@ def summarise(records: list[dict]) -> dict:
                     "named": frac(lib, lambda r: r["named"] == r["effect"]),
                     "detectable": len(det), "top1_detectable": frac(det, lambda r: r["top"] == r["effect"]),
                     "named_detectable": frac(det, lambda r: r["named"] == r["effect"]),
-                    "top1_or_tied_detectable": frac(det, tied),
+                    "top1_or_tied_detectable": frac(det, top_or_tied),
                     "median_reduction_ratio": round(float(np.median([ratio(r) for r in det])), 3) if det else None,
                     "by_effect": by_effect},
         "no_effect": {"cases": len(none), "false_alarms": sum(1 for r in none if r["named"]),

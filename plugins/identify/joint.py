@@ -376,10 +376,10 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     r0 = residual(candidates[best][0])
     res = least_squares(residual, start_theta, bounds=(lo, hi), x_scale=scale, method="trf",
                         max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
-    n_used = int(use.sum()) * 3
+    n_window = int(use.sum()) * 3  # residuals of the window fit
     rows_used = np.zeros(tl.n, dtype=bool)
     rows_used[(starts[:, None] + np.arange(length + 1)[None, :])[use]] = True
-    x, jac, fun, n_distinct = res.x, res.jac, res.fun, 3 * int(rows_used.sum())
+    x, jac, fun, n_used, n_distinct = res.x, res.jac, res.fun, n_window, 3 * int(rows_used.sum())
     jm.window_params = dict(zip(jm.names, map(float, x)))
     polished = _polish(jm, tl, polish, x, lo, hi, scale, counter, score, progress) if polish is not None else None
     if polished is not None:  # the open-loop windows are a sample: their measurements hardly overlap
@@ -390,11 +390,13 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     jm.std = {n: float(v) for n, v in zip(jm.names, std)}
     jm.conditioning = conditioning(jm, x, jac)
     if progress:
-        progress(f"fit {len(starts)} windows x {length} steps: rms {math.sqrt(np.mean(r0 ** 2) * r0.size / n_used):.3f}"
-                 f" -> {math.sqrt(2 * res.cost / n_used):.3f} mm ({counter['n']} evaluations, "
+        progress(f"fit {len(starts)} windows x {length} steps: "
+                 f"rms {math.sqrt(np.mean(r0 ** 2) * r0.size / n_window):.3f}"
+                 f" -> {math.sqrt(2 * res.cost / n_window):.3f} mm ({counter['n']} evaluations, "
                  f"start {best + 1} of {len(candidates)})")
     return FitResult(params=jm.params(), std=dict(zip(jm.names, std)),
-                     rms_mm=math.sqrt(2 * res.cost / n_used), rms_start_mm=math.sqrt(float(np.sum(r0 ** 2)) / n_used),
+                     rms_mm=math.sqrt(2 * res.cost / n_window),
+                     rms_start_mm=math.sqrt(float(np.sum(r0 ** 2)) / n_window),
                      evaluations=counter["n"], status=int(res.status), start=best,
                      extra={"conditioning": jm.conditioning})
 
