@@ -9,7 +9,7 @@ Pipeline of ``cosim diagnose`` (units mm, mm/s, Hz, s):
    fitted quickly by its own method, then refined on the diagnose
    objective, :func:`cosim_plugins.identify.joint.fit_joint`);
 3. measure open-loop errors on held-out windows: the initial state is
-   solved on a lead-in of :data:`LEAD_S`, then the model predicts alone for
+   solved on a lead-in of :data:`LEAD_S` (at least :data:`MIN_LEAD_ROWS` rows), then the model predicts alone for
    each horizon; the noise floor is the error a perfect model would show
    with the measurement noise estimated from the data (:mod:`.noise`);
 4. localise the baseline's error on all windows (:mod:`.localise`);
@@ -44,6 +44,9 @@ from cosim_plugins.identify.verdict import fit_notes, paired_t, verdict
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"
 LEAD_S = 0.2  # lead-in on which each evaluation window's initial state is solved
+# ... but never fewer log rows than this: from 5 camera frames (0.2 s at 40 ms) the initial velocity is so noisy
+# that a model which forgets it fast (a delay before a fast response) predicts better than the true one
+MIN_LEAD_ROWS = 10
 FIT_WINDOW_S = 0.5  # length of the training windows
 FIT_WINDOWS = 700  # training windows (a random sample)
 EVAL_STRIDE = 2  # rows between evaluation window starts
@@ -111,7 +114,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     dtr, dte, dall = Dataset.from_logs(train_logs), Dataset.from_logs(test_logs), Dataset.from_logs(logs)
     ttr, tte, tall = (Timeline.from_dataset(d) for d in (dtr, dte, dall))
     dt = dall.dt_s
-    lead = max(2, int(round(LEAD_S / dt)))
+    lead = max(MIN_LEAD_ROWS, int(round(LEAD_S / dt)))
     steps = {h: max(1, int(round(v / dt))) for h, v in s.horizons.items()}
     fit_len = max(4, int(round(FIT_WINDOW_S / dt)))
     frac = float(np.mean(tall.measured))  # sparse camera frames: ask for a share of what the logs have

@@ -111,6 +111,19 @@ def test_discover_on_logs_too_short_says_so(blind, tmp_path):
     assert np.isfinite(r["baseline"]["rollout_mm"]["1.0"])
 
 
+def test_forty_ms_logs_with_nothing_hidden_name_no_delay(tmp_path, fresh_plugins):
+    """The bench's second draw, case 18: 40 ms steps, 0.24 mm camera noise, nothing hidden. With a 0.2 s lead-in
+    (5 frames) a delay before a fast velocity response forgot the noisy initial velocity and beat the true model
+    (an actuation lag named, 14 %, t = 6.6); the lead-in now spans at least 10 rows."""
+    case = blind_sim.draw_cases(60, 1)[18]
+    assert (case.group, case.regime["dt_s"]) == ("none", 0.04)
+    logs = blind_sim.simulate(case, tmp_path)
+    r = run(logs, settings=Settings(candidates=["sensor_latency", "actuation_lag"], fit_windows=FIT_WINDOWS)).result
+    assert r["lead_in_s"] == pytest.approx(0.4)
+    assert r["verdict"]["effect"] is None, r["verdict"]["explanation"]
+    assert all(e["reduction"] < 0.05 for e in r["ranking"]), [(e["effect"], e["reduction"]) for e in r["ranking"]]
+
+
 @pytest.mark.parametrize("group,effect", [("library", e) for e in blind_sim.LIBRARY]
                          + [("outside", e) for e in blind_sim.OUTSIDE if e != "periodic"])
 def test_true_form_loads_and_holds_a_start_at_the_truth(group, effect, tmp_path, fresh_plugins):
