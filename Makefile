@@ -18,7 +18,7 @@ example: $(STAMP)
 	$(VENV)/bin/cosim run examples/dc_motor/scenario.yaml --out runs/dc_motor
 
 test: $(STAMP) $(FMU)
-	$(PY) -m pytest
+	$(PY) -m pytest -n auto --dist loadscope
 
 fmu: $(FMU)
 

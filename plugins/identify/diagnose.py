@@ -43,9 +43,10 @@ from cosim_plugins.identify.verdict import fit_notes, paired_t, verdict
 
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"
-LEAD_S = 0.2  # lead-in on which each evaluation window's initial state is solved
-# ... but never fewer log rows than this: from 5 camera frames (0.2 s at 40 ms) the initial velocity is so noisy
-# that a model which forgets it fast (a delay before a fast response) predicts better than the true one
+# lead-in on which each evaluation window's initial state is solved, and never fewer log rows than that: from a
+# shorter one the initial velocity is so noisy that a model which forgets it fast (a delay before a faster
+# velocity response, whose delayed command is known from the log) predicts better than the true one
+LEAD_S = 0.4
 MIN_LEAD_ROWS = 10
 FIT_WINDOW_S = 0.5  # length of the training windows
 FIT_WINDOWS = 700  # training windows (a random sample)

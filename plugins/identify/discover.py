@@ -261,19 +261,20 @@ def _sensitivities(jm, tl, windows, term_idx, host_idx):
     sensitivities to the term coefficients and the host parameters (finite differences)."""
     theta0 = jm.theta.copy()
 
-    def pred(theta):  # predicted - measured: its differences are the sensitivities of the prediction
+    def pred(theta, held=None):  # predicted - measured: its differences are the sensitivities of the prediction
         jm._set(theta)
         with np.errstate(all="ignore"):
-            return np.nan_to_num(windows.errors(jm, tl))
+            e, solve = windows.errors(jm, tl, held)
+        return np.nan_to_num(e), solve
 
-    e0 = pred(theta0)
+    e0, solve = pred(theta0)
     scales = jm.scales()
 
-    def column(i):
+    def column(i):  # the initial-state solve held (joint.HeldJacobian): one rollout per column
         th = theta0.copy()
         h = FD_STEP * scales[i]
         th[i] += h
-        return (pred(th) - e0) / h
+        return (pred(th, solve)[0] - e0) / h
 
     J = np.stack([column(i) for i in term_idx], axis=1)
     H = np.stack([column(i) for i in host_idx], axis=1)

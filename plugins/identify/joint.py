@@ -25,6 +25,12 @@ a small linear least-squares step on the rollout's sensitivity to them
   a slow drift (a flow, a too-slow velocity response that keeps an initial
   velocity) and a delay trades off against the velocity response almost
   for free; over the horizon the model must predict alone, they do not.
+
+Every least-squares problem here takes its Jacobian with the initial state's
+sensitivity held at the current parameters (:class:`HeldJacobian`, Kaufman's
+approximation of variable projection): a parameter's column then costs one
+rollout of the windows instead of four (the nominal one and one per
+velocity component).
 """
 
 from __future__ import annotations
@@ -63,10 +69,22 @@ class OpenLoop:
         """Errors at every step 1 .. ``horizon`` after the lead-in."""
         return cls(starts, lead, tuple(range(1, horizon + 1)))
 
-    def errors(self, jm: "JointModel", tl) -> np.ndarray:
-        """(w * H * 3,) predicted - measured [mm] (window-major), 0 where a window does not reach step k."""
-        ev = jm.evaluate(tl, self.starts, self.lead, {k: k for k in self.steps}, passes=1)
-        return np.stack([np.where(e["valid"][:, None], e["err"], 0.0) for e in ev.values()], axis=1).reshape(-1)
+    def errors(self, jm: "JointModel", tl, held: "Solve | None" = None) -> tuple[np.ndarray, "Solve"]:
+        """((w * H * 3,) predicted - measured [mm] (window-major), 0 where a window does not reach step k;
+        the initial-state solve), the solve held from ``held`` when given (see :meth:`JointModel.projected`)."""
+        ev, solve = jm.open_loop(tl, self.starts, self.lead, {k: k for k in self.steps}, passes=1, held=held)
+        return np.stack([np.where(e["valid"][:, None], e["err"], 0.0) for e in ev.values()], axis=1).reshape(-1), solve
+
+
+@dataclass(frozen=True)
+class Solve:
+    """The initial-state solve of a batch of windows: the state its last pass started from, x0 (w, 6), the
+    sensitivity S (w, L + 1, 3, 6) and its normal matrix G (w, 6, 6), and the rollouts' lookback."""
+
+    x0: np.ndarray
+    S: np.ndarray
+    G: np.ndarray
+    lookback: int
 
 
 def supports_effects(model) -> bool:
@@ -191,39 +209,40 @@ class JointModel:
             traj = np.stack([effect.transform(t, tl.dt_s, prm) for t in traj])
         return traj[:, :, m:]
 
-    def projected(self, tl, starts, length, fit_rows: np.ndarray, x0=None, passes: int = 1, u_eff=None):
+    def projected(self, tl, starts, length, fit_rows: np.ndarray, passes: int = 1, u_eff=None,
+                  held: Solve | None = None):
         """Rollouts with each window's initial state solved on ``fit_rows``.
 
         Args:
             fit_rows: (w, L + 1) bool, rows whose measurements determine the initial state.
-            x0: (w, 6) starting guesses (default ``tl.x_lin`` where the rollouts start, see :meth:`trajectories`).
+            held: a :class:`Solve` of the same windows to hold: one rollout from its x0, corrected with its
+                sensitivity (a Jacobian's column, see :class:`HeldJacobian`); ignored when the lookback changed.
         Returns:
-            (pred (w, L + 1, 3) predicted measurements after the correction,
-             S (w, L + 1, 3, 6) sensitivity to the initial state, G (w, 6, 6) its normal matrix).
+            (pred (w, L + 1, 3) predicted measurements after the correction, the :class:`Solve`).
         """
-        if x0 is None:
-            x0 = tl.x_lin[np.maximum(starts - self.lookback(), tl.segment_start[starts])]
-        x0 = x0.copy()
         target = targets(tl, starts, length)
         use = fit_rows & np.all(np.isfinite(target), axis=2)
         tz = np.where(use[..., None], target, 0.0)
-        for _ in range(max(passes, 1)):
-            xs = np.stack([x0] + [x0 + DV * np.eye(6)[3 + a] for a in range(3)])
-            q = self.trajectories(tl, starts, length, xs, u_eff)
-            S = np.zeros(q.shape[1:3] + (3, 6))
-            S[..., :3] = np.eye(3)
-            S[..., 3:] = ((q[1:] - q[0]) / DV).transpose(1, 2, 3, 0)
-            q0 = np.where(np.isfinite(q[0]), q[0], 0.0)
-            S = np.where(np.isfinite(S), S, 0.0)
-            r = np.where(use[..., None], q0 - tz, 0.0)
-            w, rows = use.shape
-            Su = (S * use[..., None, None]).reshape(w, rows * 3, 6)  # batched matmul: BLAS, not einsum loops
-            SuT = Su.transpose(0, 2, 1)
-            G = SuT @ Su + RIDGE
-            d = np.linalg.solve(G, -(SuT @ r.reshape(w, rows * 3, 1)))[..., 0]
-            x0 = x0 + d
-        pred = q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape)
-        return pred, S, G
+        m = self.lookback()
+        if held is not None and held.lookback == m:
+            q0 = self.trajectories(tl, starts, length, held.x0[None], u_eff)[0]
+            return _corrected(q0, held.S, held.G, use, tz)[0], held
+        x0 = tl.x_lin[np.maximum(starts - m, tl.segment_start[starts])]  # the guess where the rollouts start
+        xs = np.stack([x0] + [x0 + DV * np.eye(6)[3 + a] for a in range(3)])
+        q = self.trajectories(tl, starts, length, xs, u_eff)
+        S = np.zeros(q.shape[1:3] + (3, 6))
+        S[..., :3] = np.eye(3)
+        S[..., 3:] = ((q[1:] - q[0]) / DV).transpose(1, 2, 3, 0)
+        S = np.where(np.isfinite(S), S, 0.0)
+        Su = (S * use[..., None, None]).reshape(len(starts), -1, 6)
+        G = Su.transpose(0, 2, 1) @ Su + RIDGE
+        pred, d = _corrected(q[0], S, G, use, tz)
+        solve = Solve(x0, S, G, m)
+        for _ in range(passes - 1):  # further passes from the corrected state, the sensitivity held
+            solve = replace(solve, x0=solve.x0 + d)
+            q0 = self.trajectories(tl, starts, length, solve.x0[None], u_eff)[0]
+            pred, d = _corrected(q0, S, G, use, tz)
+        return pred, solve
 
     # ------------------------------------------------------------ evaluation
 
@@ -233,16 +252,21 @@ class JointModel:
         Args:
             starts: (w,) window start rows (the lead-in's first row).
             steps: {horizon key: steps after the lead-in}.
-            passes: Gauss-Newton passes of the initial state's solve (one is exact for a model linear in it).
+            passes: Gauss-Newton passes of the initial state's solve (one is exact for a model linear in it;
+                the later ones hold the first one's sensitivity).
         Returns:
             {key: {"valid": (w,) bool, "err": (w, 3) predicted - measured [mm]}}; a window whose
             rollout diverged (NaN, or off by more than :data:`DIVERGED_MM`) has an error of DIVERGED_MM
         """
+        return self.open_loop(tl, starts, lead, steps, passes)[0]
+
+    def open_loop(self, tl, starts, lead, steps, passes: int = 2, held: Solve | None = None):
+        """(:meth:`evaluate`'s errors, the initial-state :class:`Solve`), the solve held from ``held`` if given."""
         length = lead + max(steps.values())
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
         fit_rows[:, : lead + 1] = True
         with np.errstate(all="ignore"):  # a model that diverges shows as a huge error, not a warning
-            pred, _, _ = self.projected(tl, starts, length, fit_rows, passes=passes)
+            pred, solve = self.projected(tl, starts, length, fit_rows, passes=passes, held=held)
         target = targets(tl, starts, length)
         out = {}
         for key, k in steps.items():
@@ -253,7 +277,58 @@ class JointModel:
                 diverged = valid & ~(np.linalg.norm(err, axis=1) <= DIVERGED_MM)  # NaN too
             err[diverged] = DIVERGED_MM / math.sqrt(3.0)
             out[key] = {"valid": valid, "err": err}
-        return out
+        return out, solve
+
+
+def _corrected(q0, S, G, use, tz):
+    """(q0 corrected by the Gauss-Newton step of the initial state (w, L + 1, 3), the step d (w, 6)): the step
+    fits the rows ``use`` (w, L + 1) of the targets ``tz`` (0 elsewhere) with the sensitivity S and its G."""
+    w, rows = use.shape
+    q0 = np.where(np.isfinite(q0), q0, 0.0)
+    r = np.where(use[..., None], q0 - tz, 0.0)
+    Su = (S * use[..., None, None]).reshape(w, rows * 3, 6)  # batched matmul: BLAS, not einsum loops
+    d = np.linalg.solve(G, -(Su.transpose(0, 2, 1) @ r.reshape(w, rows * 3, 1)))[..., 0]
+    return q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape), d
+
+
+class HeldJacobian:
+    """Residuals ``fn(held) -> (r (N,), Solve)`` of windows whose initial states are solved, as a function of
+    the parameters, with a forward-difference Jacobian that holds the initial-state solve at the current
+    parameters (Kaufman's approximation of variable projection): one rollout per column instead of four."""
+
+    STEP = 1.5e-8  # relative forward-difference step (the square root of the machine epsilon)
+
+    def __init__(self, jm: "JointModel", fn, counter: dict | None = None):
+        self.jm, self.fn, self.counter = jm, fn, counter
+        self.theta, self.r, self.solve = None, None, None
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        if self.counter is not None:
+            self.counter["n"] += 1
+        self.jm._set(theta)
+        self.r, self.solve = self.fn(None)
+        self.theta = np.array(theta, dtype=float)
+        return self.r
+
+    def jac(self, theta: np.ndarray, cols=None) -> np.ndarray:
+        """(N, len(cols)) derivatives of the residuals by the parameters ``cols`` (default: all)."""
+        theta = np.asarray(theta, dtype=float)
+        if self.theta is None or not np.array_equal(theta, self.theta):
+            self(theta)
+        r0, solve = self.r, self.solve
+        cols = np.arange(len(theta)) if cols is None else np.asarray(cols)
+        _, hi = self.jm.bounds()
+        scale = self.jm.scales()
+        J = np.empty((len(r0), len(cols)))
+        for n, j in enumerate(cols):
+            th = theta.copy()
+            h = self.STEP * max(abs(th[j]), scale[j])
+            h = -h if th[j] + h > hi[j] else h
+            th[j] += h
+            self.jm._set(th)
+            J[:, n] = (self.fn(solve)[0] - r0) / h
+        self.jm._set(theta)
+        return J
 
 
 def targets(tl, starts: np.ndarray, length: int) -> np.ndarray:
@@ -327,15 +402,13 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
         use = np.all(np.isfinite(target), axis=2)
         target = np.nan_to_num(target)
 
-        def residual(theta):
-            counter["n"] += 1
-            jm._set(theta)
+        def residual(held):
             with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
-                pred, _, _ = jm.projected(tl, rows, length, fit_rows, u_eff=fixed_u)
+                pred, solve = jm.projected(tl, rows, length, fit_rows, u_eff=fixed_u, held=held)
                 r = np.where(use[..., None], pred - target, 0.0)
-            return np.nan_to_num(r.reshape(-1), nan=1e6, posinf=1e6, neginf=-1e6)
+            return np.nan_to_num(r.reshape(-1), nan=1e6, posinf=1e6, neginf=-1e6), solve
 
-        return residual, use
+        return HeldJacobian(jm, residual, counter), use
 
     residual, use = objective(starts)
 
@@ -374,7 +447,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     else:
         best, start_theta = 0, candidates[0][0]
     r0 = residual(candidates[best][0])
-    res = least_squares(residual, start_theta, bounds=(lo, hi), x_scale=scale, method="trf",
+    res = least_squares(residual, start_theta, jac=residual.jac, bounds=(lo, hi), x_scale=scale, method="trf",
                         max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
     n_window = int(use.sum()) * 3  # residuals of the window fit
     rows_used = np.zeros(tl.n, dtype=bool)
@@ -405,14 +478,14 @@ def _polish(jm, tl, ol: OpenLoop, theta, lo, hi, scale, counter, score, progress
     """The fit refined on the open-loop errors of ``ol``: (theta, Jacobian, residuals), or None when it does not
     lower ``score``."""
 
-    def residual(th):
-        counter["n"] += 1
-        jm._set(th)
+    def errors(held):
         with np.errstate(all="ignore"):
-            return np.nan_to_num(ol.errors(jm, tl), nan=DIVERGED_MM, posinf=DIVERGED_MM, neginf=-DIVERGED_MM)
+            e, solve = ol.errors(jm, tl, held)
+        return np.nan_to_num(e, nan=DIVERGED_MM, posinf=DIVERGED_MM, neginf=-DIVERGED_MM), solve
 
+    residual = HeldJacobian(jm, errors, counter)
     before = _scored(jm, theta, score)
-    r = least_squares(residual, jm.clip(theta), bounds=(lo, hi), x_scale=scale, method="trf",
+    r = least_squares(residual, jm.clip(theta), jac=residual.jac, bounds=(lo, hi), x_scale=scale, method="trf",
                       max_nfev=POLISH_NFEV, ftol=1e-6, xtol=1e-7)
     after = _scored(jm, r.x, score)
     keep = after < before if score is not None else True
@@ -441,17 +514,18 @@ def _distinct(candidates: list, scale: np.ndarray) -> list:
     return out
 
 
-def _refine_held(fun, theta: np.ndarray, held: list, lo, hi, scale) -> tuple[np.ndarray, float]:
+def _refine_held(fun: HeldJacobian, theta: np.ndarray, held: list, lo, hi, scale) -> tuple[np.ndarray, float]:
     """:data:`SHORT_NFEV` evaluations of least squares from ``theta`` with the parameters at indices ``held``
     kept at their values; (the refined theta, its cost, inf when not finite)."""
     free = np.setdiff1d(np.arange(len(theta)), held)
 
-    def sub(x):
+    def full(x):
         th = theta.copy()
         th[free] = x
-        return fun(th)
+        return th
 
-    r = least_squares(sub, theta[free], bounds=(lo[free], hi[free]), x_scale=scale[free], method="trf",
+    r = least_squares(lambda x: fun(full(x)), theta[free], jac=lambda x: fun.jac(full(x), free),
+                      bounds=(lo[free], hi[free]), x_scale=scale[free], method="trf",
                       max_nfev=SHORT_NFEV, ftol=1e-6, xtol=1e-7)
     out = theta.copy()
     out[free] = r.x
