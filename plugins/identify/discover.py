@@ -258,28 +258,19 @@ def _term_scales(tl, starts, length) -> np.ndarray:
 
 def _sensitivities(jm, tl, windows, term_idx, host_idx):
     """(r (N,), J (N, M), H (N, K)): measured minus predicted positions of the open-loop ``windows`` and their
-    sensitivities to the term coefficients and the host parameters (finite differences)."""
-    theta0 = jm.theta.copy()
+    sensitivities to the term coefficients and the host parameters (forward differences of :data:`FD_STEP`
+    scales, the initial-state solve held: :class:`~cosim_plugins.identify.joint.HeldJacobian`)."""
+    from cosim_plugins.identify.joint import HeldJacobian
 
-    def pred(theta, held=None):  # predicted - measured: its differences are the sensitivities of the prediction
-        jm._set(theta)
+    def errors(held):  # predicted - measured
         with np.errstate(all="ignore"):
             e, solve = windows.errors(jm, tl, held)
         return np.nan_to_num(e), solve
 
-    e0, solve = pred(theta0)
-    scales = jm.scales()
-
-    def column(i):  # the initial-state solve held (joint.HeldJacobian): one rollout per column
-        th = theta0.copy()
-        h = FD_STEP * scales[i]
-        th[i] += h
-        return (pred(th, solve)[0] - e0) / h
-
-    J = np.stack([column(i) for i in term_idx], axis=1)
-    H = np.stack([column(i) for i in host_idx], axis=1)
-    jm._set(theta0)
-    return -e0, J, H
+    theta0 = jm.theta.copy()
+    fd = HeldJacobian(jm, errors, step=FD_STEP)
+    e0 = fd(theta0)
+    return -e0, fd.jac(theta0, term_idx), fd.jac(theta0, host_idx)
 
 
 # ---------------------------------------------------------------- words and the effect file

@@ -226,7 +226,7 @@ class JointModel:
         m = self.lookback()
         if held is not None and held.lookback == m:
             q0 = self.trajectories(tl, starts, length, held.x0[None], u_eff)[0]
-            return _corrected(q0, held.S, held.G, use, tz)[0], held
+            return _corrected(q0, held.S, use, tz, held.G)[0], held
         x0 = tl.x_lin[np.maximum(starts - m, tl.segment_start[starts])]  # the guess where the rollouts start
         xs = np.stack([x0] + [x0 + DV * np.eye(6)[3 + a] for a in range(3)])
         q = self.trajectories(tl, starts, length, xs, u_eff)
@@ -234,14 +234,12 @@ class JointModel:
         S[..., :3] = np.eye(3)
         S[..., 3:] = ((q[1:] - q[0]) / DV).transpose(1, 2, 3, 0)
         S = np.where(np.isfinite(S), S, 0.0)
-        Su = (S * use[..., None, None]).reshape(len(starts), -1, 6)
-        G = Su.transpose(0, 2, 1) @ Su + RIDGE
-        pred, d = _corrected(q[0], S, G, use, tz)
+        pred, d, G = _corrected(q[0], S, use, tz)
         solve = Solve(x0, S, G, m)
         for _ in range(passes - 1):  # further passes from the corrected state, the sensitivity held
             solve = replace(solve, x0=solve.x0 + d)
             q0 = self.trajectories(tl, starts, length, solve.x0[None], u_eff)[0]
-            pred, d = _corrected(q0, S, G, use, tz)
+            pred, d, _ = _corrected(q0, S, use, tz, G)
         return pred, solve
 
     # ------------------------------------------------------------ evaluation
@@ -280,26 +278,33 @@ class JointModel:
         return out, solve
 
 
-def _corrected(q0, S, G, use, tz):
-    """(q0 corrected by the Gauss-Newton step of the initial state (w, L + 1, 3), the step d (w, 6)): the step
-    fits the rows ``use`` (w, L + 1) of the targets ``tz`` (0 elsewhere) with the sensitivity S and its G."""
+def _corrected(q0, S, use, tz, G=None):
+    """(q0 corrected by the Gauss-Newton step of the initial state (w, L + 1, 3), the step d (w, 6), G): the
+    step fits the rows ``use`` (w, L + 1) of the targets ``tz`` (0 elsewhere) with the sensitivity S and its
+    normal matrix G (w, 6, 6; made here when not given)."""
     w, rows = use.shape
     q0 = np.where(np.isfinite(q0), q0, 0.0)
     r = np.where(use[..., None], q0 - tz, 0.0)
     Su = (S * use[..., None, None]).reshape(w, rows * 3, 6)  # batched matmul: BLAS, not einsum loops
-    d = np.linalg.solve(G, -(Su.transpose(0, 2, 1) @ r.reshape(w, rows * 3, 1)))[..., 0]
-    return q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape), d
+    SuT = Su.transpose(0, 2, 1)
+    if G is None:
+        G = SuT @ Su + RIDGE
+    d = np.linalg.solve(G, -(SuT @ r.reshape(w, rows * 3, 1)))[..., 0]
+    return q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape), d, G
 
 
 class HeldJacobian:
     """Residuals ``fn(held) -> (r (N,), Solve)`` of windows whose initial states are solved, as a function of
     the parameters, with a forward-difference Jacobian that holds the initial-state solve at the current
-    parameters (Kaufman's approximation of variable projection): one rollout per column instead of four."""
+    parameters (Kaufman's approximation of variable projection): one rollout per column instead of four.
+
+    ``step``: each column's step in units of its parameter's scale (default: :data:`STEP` of the parameter's
+    size or scale, whichever is larger)."""
 
     STEP = 1.5e-8  # relative forward-difference step (the square root of the machine epsilon)
 
-    def __init__(self, jm: "JointModel", fn, counter: dict | None = None):
-        self.jm, self.fn, self.counter = jm, fn, counter
+    def __init__(self, jm: "JointModel", fn, counter: dict | None = None, step: float | None = None):
+        self.jm, self.fn, self.counter, self.step = jm, fn, counter, step
         self.theta, self.r, self.solve = None, None, None
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
@@ -322,7 +327,7 @@ class HeldJacobian:
         J = np.empty((len(r0), len(cols)))
         for n, j in enumerate(cols):
             th = theta.copy()
-            h = self.STEP * max(abs(th[j]), scale[j])
+            h = self.step * scale[j] if self.step is not None else self.STEP * max(abs(th[j]), scale[j])
             h = -h if th[j] + h > hi[j] else h
             th[j] += h
             self.jm._set(th)

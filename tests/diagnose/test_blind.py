@@ -114,7 +114,7 @@ def test_discover_on_logs_too_short_says_so(blind, tmp_path):
 def test_forty_ms_logs_with_nothing_hidden_name_no_delay(tmp_path, fresh_plugins):
     """The bench's second draw, case 18: 40 ms steps, 0.24 mm camera noise, nothing hidden. With a 0.2 s lead-in
     (5 frames) a delay before a fast velocity response forgot the noisy initial velocity and beat the true model
-    (an actuation lag named, 14 %, t = 6.6); the lead-in now spans at least 10 rows."""
+    (an actuation lag named, 14 %, t = 6.6); the lead-in is now 0.4 s (at least 10 rows)."""
     case = blind_sim.draw_cases(60, 1)[18]
     assert (case.group, case.regime["dt_s"]) == ("none", 0.04)
     logs = blind_sim.simulate(case, tmp_path)
