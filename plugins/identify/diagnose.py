@@ -34,7 +34,7 @@ from cosim_plugins.raw_log import read_logs
 from cosim.contract.errors import UserError
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
-from cosim_plugins.identify.joint import POLISH_NFEV, JointModel, OpenLoop, fit_joint, supports_effects
+from cosim_plugins.identify.joint import JointModel, OpenLoop, fit_joint, supports_effects
 from cosim_plugins.identify.localise import localise, window_features
 from cosim_plugins.identify.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.identify.timeline import Timeline
@@ -43,24 +43,20 @@ from cosim_plugins.identify.verdict import fit_notes, paired_t, verdict
 
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"
-# lead-in on which each evaluation window's initial state is solved, and never fewer log rows than that. An input
-# delay (a lag, a latency) carries a velocity-like state made from the whole logged command history, while the
-# model without it solves its velocity from the lead-in's noisy positions: from a lead-in shorter than a few
-# velocity time constants (up to ~0.5 s), a delay before a faster velocity response predicts better than the true
-# model. After 1 s the true model's velocity is set by the commands too, and the delay gains nothing.
-LEAD_S = 1.0
+# lead-in on which each evaluation window's initial state is solved, and never fewer log rows than that: from a
+# shorter one the initial velocity is so noisy that a model which forgets it fast (a delay before a faster
+# velocity response, whose delayed command is known from the log) predicts better than the true one
+LEAD_S = 0.4
 MIN_LEAD_ROWS = 10
 FIT_WINDOW_S = 0.5  # length of the training windows
 FIT_WINDOWS = 700  # training windows (a random sample)
-EVAL_STRIDE = 3  # rows between evaluation window starts (a 1 s lead-in: neighbours share almost all rows)
+EVAL_STRIDE = 2  # rows between evaluation window starts
 BLOCK_S = 5.0  # split: block length
 HOLDOUT_EVERY = 3  # split: every third block is held out
 MIN_FIT_WINDOWS = 60
 MIN_EVAL_WINDOWS = 30
 SCORE_WINDOWS = 100  # training windows whose open-loop error picks a fit's start
-POLISH_WINDOWS = 200  # training windows of the open-loop polish (another sample)
-BASELINE_POLISH_NFEV = 30  # the baseline's open-loop polish goes on to convergence (a cap): every effect is
-# judged against it, and its window fit leaves the velocity time constant ill-determined
+POLISH_WINDOWS = 250  # training windows of the open-loop polish (another sample)
 DISCOVER_WINDOWS = 400  # training windows of the discovery's regression (another sample)
 EFFECT_MODEL = "physical"
 DISCOVERED_FILE = "discovered_effect.py"
@@ -162,9 +158,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     added_out, after = None, None
     if added:
         say(f"adding {', '.join(e.name for e in added)} ...")
-        # the reference of the ranking: polished as far as the baseline
-        after = _with_effects(reference, added, ttr, fit_starts, fit_len, s, say, score, polish,
-                              BASELINE_POLISH_NFEV)
+        after = _with_effects(reference, added, ttr, fit_starts, fit_len, s, say, score, polish)
         after_ev, after_sum = evaluate(after.model)
         added_out = {"effects": [e.name for e in added], "params": after.params, "std": after.std,
                      "before_mm": ref_sum["rollout_mm"], "rollout_mm": after_sum["rollout_mm"],
@@ -355,7 +349,7 @@ def _fit_model(name, dtr, ttr, starts, length, s: Settings, say, score=None, pol
     jm = JointModel(model)
     if supports_effects(model):
         fit_joint(jm, ttr, starts, length, max_nfev=nfev, fresh_starts=[_host_init(jm.host)], progress=say,
-                  score=score, polish=polish, polish_nfev=BASELINE_POLISH_NFEV)
+                  score=score, polish=polish)
     return jm
 
 
@@ -364,8 +358,7 @@ def _host_init(host) -> dict:
     return {q.name: q.init for q in host.all_params() if "." not in q.name}
 
 
-def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, say, score=None, polish=None,
-                  polish_nfev: int = POLISH_NFEV) -> _Fitted:
+def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, say, score=None, polish=None) -> _Fitted:
     """The reference model plus ``effects``, all parameters refitted jointly.
 
     Starts: the reference's parameters with each effect's starts (its listed ones and those drawn
@@ -381,7 +374,7 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: Settings, sa
     host0 = _host_init(base_host)
     fresh = [host0] + [{**host0, **st} for st in extra]  # the effects' own starts held while the host adapts
     res = fit_joint(jm, ttr, starts, length, max_nfev=s.max_nfev, extra_starts=extra, fresh_starts=fresh,
-                    progress=say, score=score, polish=polish, polish_nfev=polish_nfev)
+                    progress=say, score=score, polish=polish)
     own = [q for e in effects for q in e.param_names()]
     units = {q.name: q.unit for q in jm.param_list}
     std = {n: (float(res.std[n]) if np.isfinite(res.std[n]) else None) for n in own}

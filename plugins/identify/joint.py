@@ -52,7 +52,7 @@ EE_NFEV = 15  # evaluations of each equation-error fit
 DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank) [mm]
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
-POLISH_NFEV = 8  # evaluations of the open-loop polish (a cap: a converged polish stops earlier)
+POLISH_NFEV = 8  # evaluations of the open-loop polish
 
 
 @dataclass(frozen=True)
@@ -376,8 +376,7 @@ class FitResult:
 
 
 def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int = 30,
-              extra_starts=(), fresh_starts=(), progress=None, score=None, polish: OpenLoop | None = None,
-              polish_nfev: int = POLISH_NFEV) -> FitResult:
+              extra_starts=(), fresh_starts=(), progress=None, score=None, polish: OpenLoop | None = None) -> FitResult:
     """Fit all parameters of ``jm`` on windows of ``length`` steps at rows ``starts``.
 
     Starts: the current parameters; each ``extra_starts`` dict ``{name: value}``
@@ -391,8 +390,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     :data:`SCREEN_EVERY`-th window (a start's own cost says little: in a flat
     degenerate basin the right one can start dearer); the best of them by
     ``score(jm)`` (lower is better; default: the screening cost) is refined
-    for up to ``max_nfev`` on all windows, then on the open-loop errors of ``polish`` for up to
-    ``polish_nfev`` (kept when it lowers ``score``). The optimiser works in units of
+    for up to ``max_nfev`` on all windows. The optimiser works in units of
     each parameter's typical scale. Standard errors come
     from the Jacobian at the solution, sigma^2 (J^T J)^-1, inflated by how
     often each measurement enters overlapping windows;
@@ -461,8 +459,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     rows_used[(starts[:, None] + np.arange(length + 1)[None, :])[use]] = True
     x, jac, fun, n_used, n_distinct = res.x, res.jac, res.fun, n_window, 3 * int(rows_used.sum())
     jm.window_params = dict(zip(jm.names, map(float, x)))
-    polished = (_polish(jm, tl, polish, x, lo, hi, scale, counter, score, progress, polish_nfev)
-                if polish is not None else None)
+    polished = _polish(jm, tl, polish, x, lo, hi, scale, counter, score, progress) if polish is not None else None
     if polished is not None:  # the open-loop windows are a sample: their measurements hardly overlap
         x, jac, fun = polished
         n_used = n_distinct = int(np.count_nonzero(fun))
@@ -482,7 +479,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
                      extra={"conditioning": jm.conditioning})
 
 
-def _polish(jm, tl, ol: OpenLoop, theta, lo, hi, scale, counter, score, progress, max_nfev: int = POLISH_NFEV):
+def _polish(jm, tl, ol: OpenLoop, theta, lo, hi, scale, counter, score, progress):
     """The fit refined on the open-loop errors of ``ol``: (theta, Jacobian, residuals), or None when it does not
     lower ``score``."""
 
@@ -494,7 +491,7 @@ def _polish(jm, tl, ol: OpenLoop, theta, lo, hi, scale, counter, score, progress
     residual = HeldJacobian(jm, errors, counter)
     before = _scored(jm, theta, score)
     r = least_squares(residual, jm.clip(theta), jac=residual.jac, bounds=(lo, hi), x_scale=scale, method="trf",
-                      max_nfev=max_nfev, ftol=1e-6, xtol=1e-7)
+                      max_nfev=POLISH_NFEV, ftol=1e-6, xtol=1e-7)
     after = _scored(jm, r.x, score)
     keep = after < before if score is not None else True
     if progress:
