@@ -63,6 +63,10 @@ DISCOVERED_FILE = "discovered_effect.py"
 DISCOVER_ABOVE_FLOOR = 1.5  # a named effect leaving more than this x the floor: discovery runs too
 TAU_RANGE_S = (0.005, 5.0)  # velocity time constants a non-degenerate fit can have
 TAU_DEFAULT_S = 0.2  # for the noise floor when no fit gives one
+# the baseline's starts spread over the velocity time constant (the quick fit's forces all scaled together: the
+# same speed per Hz, another time constant). On 0.5 s windows with a free initial velocity the time constant of a
+# slow swimmer is barely determined, and a fit from the quick start alone can end several times too fast.
+TAU_STARTS_S = (0.03, 0.1, 0.3, 1.0)
 
 
 @dataclass
@@ -348,9 +352,19 @@ def _fit_model(name, dtr, ttr, starts, length, s: Settings, say, score=None, pol
         model.dt_s, nfev = dtr.dt_s, 3 * s.max_nfev
     jm = JointModel(model)
     if supports_effects(model):
-        fit_joint(jm, ttr, starts, length, max_nfev=nfev, fresh_starts=[_host_init(jm.host)], progress=say,
-                  score=score, polish=polish)
+        fit_joint(jm, ttr, starts, length, max_nfev=nfev, fresh_starts=[_host_init(jm.host)],
+                  free_starts=_time_constant_starts(jm), progress=say, score=score, polish=polish)
     return jm
+
+
+def _time_constant_starts(jm: JointModel) -> list:
+    """Starts at each of :data:`TAU_STARTS_S`: every force parameter of the physical host scaled by one factor
+    (the steady speed per Hz unchanged, the velocity time constant m / Cd1 moved there); none for other hosts."""
+    tau = velocity_time_constant(jm)
+    if tau is None or not np.isfinite(tau) or tau <= 0:
+        return []
+    own = {n: v for n, v in jm.params().items() if "." not in n}  # not a saved model's effect parameters
+    return [{n: v * tau / target for n, v in own.items()} for target in TAU_STARTS_S]
 
 
 def _host_init(host) -> dict:

@@ -376,7 +376,8 @@ class FitResult:
 
 
 def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int = 30,
-              extra_starts=(), fresh_starts=(), progress=None, score=None, polish: OpenLoop | None = None) -> FitResult:
+              extra_starts=(), fresh_starts=(), free_starts=(), progress=None, score=None,
+              polish: OpenLoop | None = None) -> FitResult:
     """Fit all parameters of ``jm`` on windows of ``length`` steps at rows ``starts``.
 
     Starts: the current parameters; each ``extra_starts`` dict ``{name: value}``
@@ -384,7 +385,9 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     equation-error fit (:mod:`cosim_plugins.identify.equation_error`) from each
     ``fresh_starts`` dict applied to the current parameters (a start that does
     not inherit a degenerate previous fit; the effect parameters it names,
-    ``effect.param``, are held at their values, the host's adapt). Every
+    ``effect.param``, are held at their values, the host's adapt); each
+    ``free_starts`` dict applied to the current parameters, nothing held
+    (e.g. the host's forces scaled to another velocity time constant). Every
     distinct start is refined for :data:`SHORT_NFEV` evaluations (an extra
     start holding its own values, the rest adapting to them) on every
     :data:`SCREEN_EVERY`-th window (a start's own cost says little: in a flat
@@ -427,6 +430,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     # (start, the names it holds during its brief refinement): an effect's listed start keeps its own values
     # while the rest adapts to them (a lag of 0.3 s needs a faster velocity response than the fit without it)
     candidates = [(theta_now, ())] + [(applied(extra), tuple(extra)) for extra in extra_starts]
+    candidates += [(applied(start), ()) for start in free_starts]
     if fresh_starts and supports_equation_error(jm):
         from cosim_plugins.identify.equation_error import EquationError
 
