@@ -9,11 +9,14 @@ its (3,) input arrays into tuples once (``tuple(v.tolist())``), works on
 its outputs. Large arrays should stay vectorised with numpy.
 
 Each function does the same floating-point operations, in the same order,
-as the numpy expression it replaces (named in its docstring), so the results
-are the same to the bit: ``a.dot(b)`` on (3,) arrays sums ``a0 b0 + a1 b1``
-first, then ``+ a2 b2``, as :func:`dot` does (for the dot product that is
-the BLAS's order; ``tests/test_float_paths.py`` checks it against numpy,
-so a BLAS that summed otherwise, or fused the multiply-adds, would show).
+as the numpy expression it replaces (named in its docstring). Elementwise
+ones (cross, add, scale...) give the same bits as numpy. A dot product or a
+norm in numpy goes through the BLAS, whose kernel the CPU picks: on one
+machine it summed ``a0 b0 + a1 b1`` first, then ``+ a2 b2``, as :func:`dot`
+does, on an AVX-512 machine it fuses multiply-adds and differs in the last
+bit. ``tests/test_float_paths.py`` holds the elementwise functions to the bit
+and the BLAS ones to rounding. Either way a run is byte-identical to itself
+on one machine, in one process or many: every process runs these functions.
 """
 
 from __future__ import annotations

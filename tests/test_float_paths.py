@@ -5,8 +5,12 @@ three (or six) Python floats instead of small arrays (numpy's per-call cost
 was most of theirs). Same operations in the same order give the same
 doubles; these tests hold each against the vectorised formulation it
 replaced, on random inputs and on the awkward ones (zeros of either sign,
-halves, NaN, windows across a closed path's start), comparing bits: a run's
-log must stay byte-identical.
+halves, NaN, windows across a closed path's start), comparing bits where
+the formulation was elementwise. Where it went through the BLAS (a dot
+product, a norm) the comparison is to rounding: the BLAS picks its kernel by
+the CPU, and on an AVX-512 machine its fused multiply-adds differ from the
+Python floats in the last bit (a run stays byte-identical to itself: every
+process runs the same float paths).
 """
 
 from __future__ import annotations
@@ -34,6 +38,22 @@ def same_bits(a, b) -> bool:
     return a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
+def same_to_rounding(a, b, rel: float = 1e-12) -> bool:
+    """Equal shapes, NaN where NaN, and every element within ``rel`` of the largest magnitude of ``b``."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.shape != b.shape or not np.array_equal(np.isnan(a), np.isnan(b)):
+        return False
+    ok = ~np.isnan(b)
+    scale = float(np.max(np.abs(b[ok]), initial=0.0))
+    return bool(np.all(np.abs(a[ok] - b[ok]) <= rel * scale))
+
+
+def same_angle_to_rounding(a, b, rel: float = 1e-12) -> bool:
+    """Angles [rad] equal to rounding modulo 2 pi (a rounding at the branch cut moves one by 2 pi)."""
+    d = np.angle(np.exp(1j * (np.asarray(a, dtype=float) - np.asarray(b, dtype=float))))
+    return bool(np.all(np.abs(d) <= rel * 2 * math.pi))
+
+
 def vectors(rng, n: int) -> np.ndarray:
     """(n, 3) vectors over nine decades, some with exact zeros of either sign."""
     v = rng.standard_normal((n, 3)) * 10.0 ** rng.uniform(-6, 3, (n, 1))
@@ -51,8 +71,8 @@ def test_vec3_matches_numpy_on_3_vectors():
     for a, b in zip(a_all, b_all):
         ta, tb = tuple(a.tolist()), tuple(b.tolist())
         k = float(b[0]) or 1.5
-        assert vec3.dot(ta, tb) == a.dot(b)
-        assert same_bits(vec3.length(ta), vec3.norm(a))
+        assert abs(vec3.dot(ta, tb) - a.dot(b)) <= 4e-16 * np.abs(a).dot(np.abs(b))  # a few roundings of the terms
+        assert same_to_rounding(vec3.length(ta), vec3.norm(a), rel=4e-16)
         assert same_bits(vec3.cross(ta, tb), np.cross(a, b))
         assert same_bits(vec3.add(ta, tb), a + b)
         assert same_bits(vec3.sub(ta, tb), a - b)
@@ -146,7 +166,7 @@ def test_pi_matches_its_array_formulation():
         c.pursuit.index = index  # the same reference again, for the formulation
         target, closest, at_end = c.pursuit.reference(pos, vel, k * DT)
         expected, integral = pi_reference(c, integral, pos, target, closest, at_end)
-        assert same_bits(omega, expected) and same_bits(c.integral, integral)
+        assert same_to_rounding(omega, expected) and same_to_rounding(c.integral, integral)
 
 
 # ---------------------------------------------------------------- coil driver
@@ -244,7 +264,7 @@ def test_the_coil_driver_matches_its_array_formulation():
         out = driver.step(k * DT, {"omega": omega})
         amp, phase, f = reference.step(k * DT, omega)
         assert driver.fault is None
-        assert same_bits(out["coil_voltage_amp"], amp)
-        assert same_bits(out["coil_voltage_phase"], phase)
-        assert same_bits(out["drive_freq"], f)
+        assert same_to_rounding(out["coil_voltage_amp"], amp)
+        assert same_angle_to_rounding(out["coil_voltage_phase"], phase)
+        assert same_to_rounding(out["drive_freq"], f)
     driver.close()
