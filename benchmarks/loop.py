@@ -59,7 +59,7 @@ def main() -> None:
         "one_process": measure(False, args.sim_s, args.repeats),
         "processes": measure(True, args.sim_s, args.repeats),
         "processes_os_placement": measure(True, args.sim_s, args.repeats, node_cpus="none"),
-        "budgets": {"one_process": 50, "processes": 10},
+        "budgets": {"one_process": 100, "processes": 25},
     }
     print(json.dumps(result, indent=2))
 
