@@ -91,6 +91,8 @@ int plant_validate(const Plant *pl, char *msg, size_t n)
     REQUIRE(P(pl, wall_drag_gain) >= 0, wall_drag_gain, "must be >= 0");
     REQUIRE(P(pl, wall_drag_length) > 0, wall_drag_length, "must be > 0 m");
     REQUIRE(P(pl, quad_drag_cd) >= 0, quad_drag_cd, "must be >= 0");
+    REQUIRE(P(pl, added_mass_axial) >= 0, added_mass_axial, "must be >= 0");
+    REQUIRE(P(pl, added_mass_perp) >= 0, added_mass_perp, "must be >= 0");
     return 0;
 }
 

@@ -165,11 +165,25 @@ static void derivatives(const Plant *pl, const Drive *d, double t, const double 
         double s = P(pl, gradient_force_scale);   /* F_b = sum_a m_a dB_a/dx_b */
         for (int b = 0; b < 3; ++b) F[b] += s * (m[0] * Jt[0][b] + m[1] * Jt[1][b] + m[2] * Jt[2][b]);
     }
-    double inv_m = 1.0 / P(pl, mass);
-    for (int a = 0; a < 3; ++a) {
-        dy[Y_P + a] = v[a];
-        dy[Y_V + a] = F[a] * inv_m;
+    for (int a = 0; a < 3; ++a) dy[Y_P + a] = v[a];
+    if (!ON(pl, added_mass_on)) {
+        double inv_m = 1.0 / P(pl, mass);
+        for (int a = 0; a < 3; ++a) dy[Y_V + a] = F[a] * inv_m;
+        return;
     }
+    /* Added mass: the water's impulse M_a v_r, M_a = rho V (k_ax u u^T + k_perp (1 - u u^T)),
+     * turns with the body: (m + M_a) dv/dt = F - (dM_a/dt) v_r, where
+     * dM_a/dt = rho V (k_ax - k_perp) (du u^T + u du^T) and du/dt = w x u.
+     * m + M_a = alpha 1 + beta u u^T, inverted in closed form. */
+    double rv = P(pl, rho_fluid) * P(pl, volume);
+    double alpha = P(pl, mass) + rv * P(pl, added_mass_perp);
+    double beta = rv * (P(pl, added_mass_axial) - P(pl, added_mass_perp));
+    double du[3];
+    cross3(w, u, du);
+    double du_vr = dot3(du, vr);
+    for (int a = 0; a < 3; ++a) F[a] -= beta * (du[a] * v_ax + u[a] * du_vr);
+    double uF = dot3(u, F), s = beta / (alpha + beta);
+    for (int a = 0; a < 3; ++a) dy[Y_V + a] = (F[a] - s * uF * u[a]) / alpha;
 }
 
 /* Heading dynamics off: turn the body by the smallest rotation that puts its

@@ -63,7 +63,8 @@
     X(wall_drag_gain, PAR, 2.0) \
     X(wall_drag_length, PAR, 2.5e-3) \
     X(gradient_force_scale, PAR, 1.0) \
-    X(quad_drag_cd, PAR, 1.0)
+    X(quad_drag_cd, PAR, 1.0) \
+    X(added_mass_axial, PAR, 0.165) X(added_mass_perp, PAR, 0.752)
 
 #define BOOL_VARS(X) \
     X(background_flow_on, TUN, 0) \
@@ -72,7 +73,8 @@
     X(quadratic_drag_on, PAR, 0) \
     X(anisotropic_drag_on, PAR, 1) \
     X(actuation_lag_on, PAR, 1) \
-    X(heading_dynamics_on, PAR, 1)
+    X(heading_dynamics_on, PAR, 1) \
+    X(added_mass_on, PAR, 0)
 
 #define BOOL_VR_BASE 1000
 

@@ -14,6 +14,7 @@ EFFECTS = {
     "anisotropic_drag_on": {"anisotropy_ratio": 3.0},
     "actuation_lag_on": {},
     "heading_dynamics_on": {"rot_drag_perp": 3.0e-8},
+    "added_mass_on": {"added_mass_axial": 0.3, "added_mass_perp": 1.2},
 }
 # near the +x wall and the floor, axis across the drive's rotation axis
 BASE = {"p0_x": 0.07, "p0_z": -0.07, "axis0_x": 0.0, "axis0_y": 1.0, "axis0_z": 0.0}

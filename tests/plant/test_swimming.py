@@ -80,6 +80,24 @@ def test_sinking_speed_with_field_off(sim, anisotropic):
     assert np.allclose(r["velocity"][-1, :2], 0.0)
 
 
+@pytest.mark.parametrize("axis", ["horizontal", "vertical"])
+def test_added_mass_slows_the_sinking_transient_not_its_end(sim, axis):
+    """Field off, from rest: v_z(t) = -v_end (1 - exp(-t / tau)), v_end = W / c unchanged and
+    tau = (m + k rho V) / c with the drag c and the added-mass ratio k of the direction of motion
+    (broadside with the axis horizontal, axial with it vertical)."""
+    k_ax, k_perp = 0.165, 0.752
+    c, k = (DRAG_AXIAL * ANISO, k_perp) if axis == "horizontal" else (DRAG_AXIAL, k_ax)
+    tilt = {"axis0_x": 0.0, "axis0_z": 1.0} if axis == "vertical" else {}
+    params = {"gradient_force_on": False, "p0_z": 0.05, **tilt}
+    rho_v = 998.2 * 12.38e-9
+    for on, mass in ((False, 12.4e-6), (True, 12.4e-6 + k * rho_v)):
+        r = sim.run({**params, "added_mass_on": on}, None, T=0.6, dt=0.005)
+        v_end, tau = NET_WEIGHT / c, mass / c
+        expected = -v_end * (1.0 - np.exp(-r["t"] / tau))
+        assert np.abs(r["velocity"][:, 2] - expected).max() < 1e-3 * v_end, on
+        assert np.allclose(r["velocity"][:, :2], 0.0, atol=1e-12)
+
+
 @pytest.mark.parametrize("direction", [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)])
 def test_never_crosses_a_wall(sim, helpers, direction):
     n = np.array(direction, float)
