@@ -26,6 +26,13 @@ LAB_NOISE_PX = 1.0
 LAB_OUTLIER_PROB = 0.02
 LAB_LOST_PROB = 0.02
 LAB_DROP_PROB = 0.01
+#: the swimmer's net weight: the paper's physical model (Sec. II-A) fits F_vs = -0.01519 N
+#: against an axial drag C_d1 = 0.00127 N s/mm, i.e. it sinks at F_vs / C_d1 = 12.0 mm/s along its
+#: axis unpropelled; the same sinking speed on our plant's axial drag (8e-5 N s/m) is a weight of
+#: 0.96 uN (our default, a near-neutral 0.415 uN, sinks at 5.2 mm/s), so its displaced volume is
+#: (12.4 mg - 0.96 uN / g) / rho_water
+LAB_SINK_MM_S = 12.0
+LAB_VOLUME_M3 = (12.4e-6 - LAB_SINK_MM_S * 1e-3 * 8.0e-5 / 9.81) / 998.2
 
 LAB = {
     "camera.emulator": {"latency_s": LAB_LATENCY_S, "noise_px": LAB_NOISE_PX, "outlier_prob": LAB_OUTLIER_PROB,
@@ -40,10 +47,12 @@ LAB = {
     # latency_s: 0 when a filter that outputs the present, estimator.kf, feeds it)
     "controller.mpc": {"speed_mm_s": LAB_CRUISE_MM_S, "dataset": "lab", "latency_s": LAB_LATENCY_S},
     # a tank of still-looking water: thermal convection from the coils' heat (1 mm/s), the
-    # walls' extra drag near them; the other effects (actuation lag, heading dynamics,
-    # gradient force, anisotropic drag) are on in both profiles
+    # walls' extra drag near them; the water the swimmer accelerates with it (added mass:
+    # Lamb's coefficients of a 2.4:1 prolate spheroid, the plant's defaults); the paper's net
+    # weight; the other effects (actuation lag, heading dynamics, gradient force, anisotropic
+    # drag) are on in both profiles
     "plant.fmu": {"background_flow_on": True, "flow_x": 0.001, "flow_y": 0.0, "flow_z": 0.0,
-                  "wall_drag_on": True},
+                  "wall_drag_on": True, "added_mass_on": True, "volume": LAB_VOLUME_M3},
 }
 
 PROFILES = {"lab": LAB}
