@@ -19,7 +19,7 @@ INPUTS = [f"V_amp_{i}" for i in range(1, 7)] + [f"V_phase_{i}" for i in range(1,
 OUTPUTS = (["p_x", "p_y", "p_z", "v_x", "v_y", "v_z", "axis_x", "axis_y", "axis_z", "spin_rate"]
            + [f"I_amp_{i}" for i in range(1, 7)] + ["B_x", "B_y", "B_z"])
 SWITCHES = ["background_flow_on", "wall_drag_on", "gradient_force_on", "quadratic_drag_on",
-            "anisotropic_drag_on", "actuation_lag_on", "heading_dynamics_on"]
+            "anisotropic_drag_on", "actuation_lag_on", "heading_dynamics_on", "added_mass_on"]
 
 
 class Raw:
