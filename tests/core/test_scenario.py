@@ -69,6 +69,18 @@ def test_set_overrides_and_rejects_garbage(tmp_path):
         load_scenario(path, ["duration_s"])
 
 
+def test_exponent_numbers_are_numbers_in_files_overrides_and_sweeps(tmp_path):
+    """YAML 1.1 reads 5e-8 as a string; a scenario, --set and a sweep's runs read it as 5e-8."""
+    path = write(tmp_path, GOOD.replace("inputs:", "params: {noise_px: 2e-1}\n    inputs:") + textwrap.dedent("""\
+        sweep:
+          components.a.params.interval_s: [5.0e-8, 1E-2]
+    """))
+    s = load_scenario(path, ["components.a.params.outlier_mm=-3e+0"])
+    assert s.components["a"].params == {"noise_px": 0.2, "outlier_mm": -3.0}
+    runs = [load_scenario(path, overrides) for _, overrides in sweep_overrides(s)]
+    assert [r.components["a"].params["interval_s"] for r in runs] == [5e-8, 0.01]
+
+
 def test_sweep_product_and_labels(tmp_path):
     path = write(tmp_path, GOOD + textwrap.dedent("""\
         sweep:
