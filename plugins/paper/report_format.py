@@ -104,7 +104,7 @@ PROFILE_NOTE = {
              "latency, 0.2 % reflection outliers, still water",
     "lab": "`--set profile=lab` (README *Profiles*): 40 mm/s cruise, 40 ms camera latency, 1 px noise, 2 % "
            "reflection outliers, 2 % lost and 1 % dropped detections, a 1 mm/s convection flow, wall drag, "
-           "added mass and the paper's net weight (sinking at 12 mm/s)",
+           "added mass, and the paper's net weight (sinking at 12 mm/s along the axis) and drag anisotropy (1.165)",
 }
 
 

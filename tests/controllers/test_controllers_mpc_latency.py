@@ -3,9 +3,12 @@ the commands it sent since the frame's capture; without that, behind the passthr
 it plans from where the swimmer was 40 ms ago and the loop rings: on the lab profile (30 s,
 seed 1) the racetrack error was 2.98 mm against PI's 0.80, with the swimmer held ~3 mm below
 the path while commanding ~9 Hz upwards; compensated, 1.07 mm and the height error of PI's.
+Since the lab plant has the paper's drag anisotropy (1.165) the uncompensated loop no longer
+rings, and the prediction still cuts the error by a third (60 s: 0.94 -> 0.61 mm).
 
-Here the lab profile, 12 s, with its model identified on the short lab dataset (at 40 mm/s an ideal
-model, identified at 20 mm/s, is too wrong for the prediction to help: 2.54 against 3.31 mm)."""
+Here the lab profile, 12 s, with its model identified on the short lab dataset: 0.99 -> 0.72 mm,
+mean |z| 0.63 -> 0.41 mm (at 40 mm/s an ideal model, identified at 20 mm/s, is too wrong for the
+prediction to help)."""
 
 from __future__ import annotations
 
@@ -38,9 +41,9 @@ def test_compensating_the_camera_latency_cuts_the_tracking_error(latency_runs):
     (raw, raw_dir), (comp, comp_dir) = latency_runs[0.0], latency_runs[0.04]
     assert raw["status"] == comp["status"] == "ok"
     e_raw, e_comp = raw["tracking_error_mm"]["mean"], comp["tracking_error_mm"]["mean"]
-    assert e_comp < 0.6 * e_raw, f"compensated {e_comp:.2f} mm, uncompensated {e_raw:.2f} mm"
+    assert e_comp < 0.85 * e_raw, f"compensated {e_comp:.2f} mm, uncompensated {e_raw:.2f} mm"
     z_raw, z_comp = mean_abs_z_mm(raw_dir / "trace.npz"), mean_abs_z_mm(comp_dir / "trace.npz")
-    assert z_comp < 0.5 * z_raw, f"mean |z| compensated {z_comp:.2f} mm, uncompensated {z_raw:.2f} mm"
+    assert z_comp < 0.8 * z_raw, f"mean |z| compensated {z_comp:.2f} mm, uncompensated {z_raw:.2f} mm"
 
 
 def test_present_state_steps_the_model_with_the_commands_sent_since():
