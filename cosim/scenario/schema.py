@@ -175,7 +175,6 @@ class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
     list("-+0123456789"))
-_LOADER = _Loader
 
 
 class YamlDocument:
@@ -186,7 +185,7 @@ class YamlDocument:
 
     @functools.cached_property
     def node(self) -> yaml.Node | None:
-        return yaml.compose(self.text, Loader=_LOADER)
+        return yaml.compose(self.text, Loader=_Loader)
 
 
 def load_document(path: str | Path, what: str = "scenario") -> tuple[dict, YamlDocument]:
@@ -198,7 +197,7 @@ def load_document(path: str | Path, what: str = "scenario") -> tuple[dict, YamlD
                             f"{what} {path} does not exist")
     text = path.read_text()
     try:
-        data = yaml.load(text, Loader=_LOADER)
+        data = yaml.load(text, Loader=_Loader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark else ""
@@ -332,7 +331,7 @@ def parse_override(item: str) -> tuple[str, Any]:
         raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.camera.params.interval_s=0.1")
     key, raw = item.split("=", 1)
     try:
-        value = yaml.load(raw, Loader=_LOADER) if raw else None
+        value = yaml.load(raw, Loader=_Loader) if raw else None
     except yaml.YAMLError:
         value = raw
     return key.strip(), value

@@ -23,6 +23,7 @@ from typing import Any
 
 import yaml
 
+from cosim.scenario.schema import load_document
 from cosim_plugins.paper import report_format
 from cosim_plugins.paper.dataset import REPO, ensure_dataset
 
@@ -64,7 +65,7 @@ PROFILES = ("ideal", "lab")
 def _scenario_copy(name: str, out_dir: Path, quick: bool, profile: str = "ideal") -> Path:
     """The scenario as run: on ``profile``, shortened in quick mode, the interval sweep repeated over
     :data:`SWEEP_SEEDS` in a full run, written next to the results."""
-    data = yaml.safe_load((SCENARIOS / name).read_text())
+    data, _ = load_document(SCENARIOS / name)  # the framework's reading of numbers (5e-8)
     data["profile"] = profile
     key = "components.camera.params.interval_s"
     if quick:
@@ -138,7 +139,7 @@ def _trajectory_plots(key: str, out_dir: Path) -> list[str]:
 
     from cosim.scenario.paths import make_path
 
-    scenario = yaml.safe_load((out_dir / "scenarios" / f"controllers_{key}.yaml").read_text())
+    scenario, _ = load_document(out_dir / "scenarios" / f"controllers_{key}.yaml")
     path = make_path(scenario["path"]["plugin"], scenario["path"].get("params", {})).points(0.0) * 1e3
     runs = sorted((out_dir / "runs" / f"controllers_{key}" / "runs").glob("*"))
     fig, axes = plt.subplots(2, len(runs), figsize=(4 * len(runs), 7), squeeze=False)
