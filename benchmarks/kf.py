@@ -13,7 +13,7 @@ model's log is replayed ``--repeat`` times and every step's minimum kept (like
   and the update), median over the intervals;
 * ``sigma13_us`` and ``jacobian_us``: one batched model call on 13 rows (what
   a UKF step needs) and one finite-difference Jacobian (``Model.jacobians``),
-  for the EKF-vs-UKF choice (see plugins/estimators/kalman.py).
+  for the EKF-vs-UKF choice (see cosim_plugins/estimators/kalman.py).
 
 Budgets (DESIGN.md): predict <= 50 us, a 420 ms gap <= 1 ms. Models named by
 kind are the cached ones trained on the paper dataset (``COSIM_DATASET=quick``
