@@ -65,7 +65,7 @@ GOOD_SHARE = 0.5  # discovered_ok: the discovered form reaches this share of the
 def run_case(case: blind_sim.Case, out: Path) -> dict:
     """Simulate, diagnose blind, refit with the true form; one JSON-able record."""
     from cosim.contract import plugins
-    from cosim_plugins.identify.diagnose import Settings, run
+    from cosim_plugins.diagnose.pipeline import Settings, run
 
     folder = out / f"case_{case.index:03d}"
     logs = blind_sim.simulate(case, folder / "logs")

@@ -45,8 +45,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from cosim_plugins.raw_log import read_logs
-    from cosim_plugins.identify.diagnose import run
-    from cosim_plugins.identify.report import write_outputs
+    from cosim_plugins.diagnose.pipeline import run
+    from cosim_plugins.diagnose.report import write_outputs
 
     files, record_s = make_logs(Path(args.cache))
     rows = sum(lg.n for lg in read_logs(files))

@@ -1,5 +1,6 @@
-"""The swimmer's identification: datasets from raw logs, the Model and Effect contracts, fit,
-compare and diagnose, and their commands (``cosim fit``, ``convert``, ``compare``, ``diagnose``).
+"""The swimmer's identification: datasets from raw logs, the Model and Effect contracts, fitting and
+comparing models, and their commands (``cosim fit``, ``convert``, ``compare``); ``cosim diagnose``
+has its own package, :mod:`cosim_plugins.diagnose`.
 
 Models and effects are plugins of their own kinds: this package adds the hooks
 ``cosim_register_models`` and ``cosim_register_effects`` (:mod:`~cosim_plugins.identify.hookspecs`);

@@ -118,3 +118,9 @@ class Dataset:
         perm = np.random.default_rng(seed).permutation(len(idx))
         cut = int(round(frac * len(idx)))
         return np.sort(idx[perm[:cut]]), np.sort(idx[perm[cut:]])
+
+
+def log_label(path: str) -> str:
+    """A log's name that tells logs apart: ``runs/003_case=tilted/log.csv`` -> ``003_case=tilted/log.csv``."""
+    p = Path(path)
+    return f"{p.parent.name}/{p.name}" if p.parent.name else p.name

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim_plugins.identify.report import log_label
+from cosim_plugins.identify.dataset import log_label
 
 ROLLOUT_S = 0.42
 ROLLOUT_EVERY_S = 0.5

@@ -22,7 +22,7 @@ VARIANTS = {
 def record_and_diagnose(job):
     """(variant, log paths, diagnosis result) of one variant: its four logs recorded into ``root``."""
     variant, root = job
-    from cosim_plugins.identify.diagnose import Settings, run as diagnose
+    from cosim_plugins.diagnose.pipeline import Settings, run as diagnose
     from cosim.runtime.runner import RunRequest, run
 
     out = Path(root) / variant

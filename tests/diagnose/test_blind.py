@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from cosim.contract import plugins
-from cosim_plugins.identify.diagnose import Settings, run
+from cosim_plugins.diagnose.pipeline import Settings, run
 from cosim_plugins.identify.effect import known_effects, load_effect_files
 
 ROOT = Path(__file__).resolve().parents[2]

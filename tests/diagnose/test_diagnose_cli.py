@@ -57,7 +57,7 @@ def test_cli_add_shows_error_before_and_after_at_every_horizon(flow_diagnosis):
 
 
 def test_validate_logs_are_the_held_out_data(plant_logs, tmp_path):
-    from cosim_plugins.identify.diagnose import Settings, run
+    from cosim_plugins.diagnose.pipeline import Settings, run
 
     logs = plant_logs("background_flow")
     r = run(logs[:3], logs[3:], Settings(candidates=["background_flow", "quadratic_drag"])).result

@@ -10,7 +10,7 @@ import pytest
 from cosim.cli import main
 from cosim_plugins.raw_log import write_log
 from cosim.contract.errors import UserError
-from cosim_plugins.identify.diagnose import Settings, run
+from cosim_plugins.diagnose.pipeline import Settings, run
 from cosim_plugins.identify.effect import load_effect_files
 
 DATA = Path(__file__).parent / "data"

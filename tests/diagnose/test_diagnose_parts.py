@@ -9,8 +9,8 @@ from cosim_plugins.identify import synthetic as syn
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import check_effect, known_effects
 from cosim_plugins.identify.joint import JointModel
-from cosim_plugins.identify.diagnose import velocity_time_constant
-from cosim_plugins.identify.noise import noise_floor, noise_sigma_mm
+from cosim_plugins.diagnose.pipeline import velocity_time_constant
+from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.identify.timeline import Timeline
 from cosim.contract.plugins import lookup
 
@@ -113,7 +113,7 @@ def test_noise_estimate_and_floor_of_a_perfect_model(synthetic):
 
 
 def test_time_block_split_keeps_halves_apart():
-    from cosim_plugins.identify.diagnose import BLOCK_S, split_logs
+    from cosim_plugins.diagnose.pipeline import BLOCK_S, split_logs
 
 
     from dataclasses import dataclass
@@ -156,7 +156,7 @@ def test_a_latency_reads_the_path_before_each_window(synthetic):
 
 
 def test_verdict_says_when_the_runner_up_explains_the_error_about_as_well():
-    from cosim_plugins.identify.verdict import verdict
+    from cosim_plugins.diagnose.verdict import verdict
 
     def result(t_between):
         entry = {"effect": "actuation_lag", "reduction": 0.36, "t_stat": 6.0, "rollout_mm": {"1.0": 0.64},

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim_plugins.identify.diagnose import Settings, run
+from cosim_plugins.diagnose.pipeline import Settings, run
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(__file__).parent / "data"

@@ -19,15 +19,16 @@ from pathlib import Path
 import numpy as np
 
 from cosim_plugins.identify.fit import json_default
-from cosim_plugins.identify.localise import FEATURES
-from cosim_plugins.identify.wording import legend, params_text
+from cosim_plugins.diagnose.localise import FEATURES
+from cosim_plugins.identify.dataset import log_label
+from cosim_plugins.diagnose.wording import legend, params_text
 
 MAX_LOG_PLOTS = 6
 
 
 def write_outputs(diag, out_dir) -> list[Path]:
-    """Write every output file of ``diag`` (a :class:`~cosim_plugins.identify.diagnose.Diagnosis`) into ``out_dir``."""
-    from cosim_plugins.identify.diagnose_rrd import write_recording
+    """Write every output file of ``diag`` (a :class:`~cosim_plugins.diagnose.pipeline.Diagnosis`) into ``out_dir``."""
+    from cosim_plugins.diagnose.recording import write_recording
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -67,12 +68,6 @@ def target_times(diag) -> tuple[np.ndarray, np.ndarray]:
     k = diag.steps[_ref_key(diag)]
     rows = np.minimum(diag.starts + diag.lead + k, diag.timeline.n - 1)
     return diag.timeline.log[diag.starts], diag.timeline.t_s[rows]
-
-
-def log_label(path: str) -> str:
-    """A log's name that tells logs apart: ``runs/003_case=tilted/log.csv`` -> ``003_case=tilted/log.csv``."""
-    p = Path(path)
-    return f"{p.parent.name}/{p.name}" if p.parent.name else p.name
 
 
 def _ref_key(diag) -> str:

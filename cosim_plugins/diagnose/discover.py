@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim_plugins.identify.effect import Effect, Param
-from cosim_plugins.identify.verdict import BLOCK_S, MIN_T, paired_t
+from cosim_plugins.diagnose.verdict import BLOCK_S, MIN_T, paired_t
 
 AXES = "xyz"
 WALL_MM = 75.0  # the tank's half size: walls at +-75 mm

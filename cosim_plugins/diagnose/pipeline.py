@@ -36,11 +36,11 @@ from cosim.contract.errors import UserError
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
 from cosim_plugins.identify.joint import JointModel, OpenLoop, fit_joint, supports_effects
-from cosim_plugins.identify.localise import localise, window_features
-from cosim_plugins.identify.noise import noise_floor, noise_sigma_mm
+from cosim_plugins.diagnose.localise import localise, window_features
+from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.identify.timeline import Timeline
-from cosim_plugins.identify.verdict import BLOCK_S as VERDICT_BLOCK_S
-from cosim_plugins.identify.verdict import fit_notes, paired_t, verdict
+from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
+from cosim_plugins.diagnose.verdict import fit_notes, paired_t, verdict
 
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"
@@ -254,7 +254,7 @@ def _left_above_floor(result: dict, key: str) -> bool:
 def _discover(reference, ttr, fit_starts, fit_len, tte, test_starts, ref_ev, ref_sum, s, dt, evaluate, say, score,
               polish, train):
     """(result["discovered"], effect file source or None): the sparse regression of :mod:`.discover`."""
-    from cosim_plugins.identify.discover import discover
+    from cosim_plugins.diagnose.discover import discover
 
     if not supports_effects(reference.host):
         return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim_plugins.identify.wording import params_text
+from cosim_plugins.diagnose.wording import params_text
 
 MIN_REDUCTION = 0.10
 DISCOVERED_MARGIN = 0.3  # a discovered form is preferred when it cuts the best listed effect's error by this share

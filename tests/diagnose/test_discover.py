@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim_plugins.identify import discover as D
+from cosim_plugins.diagnose import discover as D
 
 
 def test_forward_selection_finds_a_sparse_support_among_correlated_columns():

@@ -1,0 +1,18 @@
+"""Model discrepancy: ``cosim diagnose`` finds where a model fails and which physical effect explains it.
+
+The pipeline (:mod:`.pipeline`) fits a baseline model to raw logs, measures its
+open-loop error against the noise floor (:mod:`.noise`), localises it
+(:mod:`.localise`), ranks candidate effects by a joint refit, discovers a
+form outside the library (:mod:`.discover`), and states a verdict
+(:mod:`.verdict`); :mod:`.report` writes report.md, diagnosis.json and
+diagnosis.rrd (:mod:`.recording`).
+"""
+
+from cosim import hookimpl
+
+
+@hookimpl
+def cosim_register_commands(register):
+    from cosim_plugins.diagnose import cli
+
+    register(cli.add_commands)

@@ -1,0 +1,121 @@
+"""``cosim diagnose``: where a model fails and which physical effect explains it.
+
+    cosim diagnose LOG... [--validate LOG...] [--model physical] [--effects-file FILE.py]...
+                   [--add EFFECT]... [--save-model PATH.npz] [--effects NAME,...] [--reference S] --out DIR
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from cosim.contract.errors import UserError
+
+
+def add_commands(subparsers) -> None:
+    """Register ``cosim diagnose``."""
+    d = subparsers.add_parser(
+        "diagnose", help="find where a model fails and which physical effect explains it",
+        description="Fit the baseline model, measure its open-loop error against the noise floor, localise it, "
+                    "and rank candidate effects by the drop of held-out error after a joint refit. Writes "
+                    "DIR/diagnosis.json, DIR/report.md (+ PNG plots) and DIR/diagnosis.rrd.")
+    d.add_argument("logs", nargs="+", metavar="LOG", help="raw log CSV files")
+    d.add_argument("--validate", nargs="+", default=[], metavar="LOG",
+                   help="held-out logs (default: every third 5 s block of the given logs)")
+    d.add_argument("--model", default="physical", help="baseline model (any registered model; default physical)")
+    d.add_argument("--effects-file", action="append", default=[], metavar="FILE.py",
+                   help="a Python file registering effects (cosim_register_effects hook); repeatable")
+    d.add_argument("--add", action="append", default=[], metavar="EFFECT",
+                   help="refit with this effect and show the error before and after; repeatable")
+    d.add_argument("--effects", metavar="NAME[,NAME...]",
+                   help="candidate effects to rank (default: every registered effect)")
+    d.add_argument("--reference", default="1.0", help="reference horizon for the ranking [s] (default 1.0)")
+    d.add_argument("--discover", action="store_true",
+                   help="also fit a sparse combination of candidate force terms to the error left (done anyway "
+                        "when no listed effect explains it); writes DIR/discovered_effect.py")
+    d.add_argument("--save-model", metavar="PATH.npz",
+                   help="with --add: save the model with the added effects (refitted) as a model file the "
+                        "Kalman filter and the MPC load (components.estimator.params.model=PATH.npz)")
+    d.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    d.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    d.set_defaults(func=cmd_diagnose)
+
+
+def _progress(message: str) -> None:
+    print(f"  .. {message}", file=sys.stderr, flush=True)
+
+
+def cmd_diagnose(args) -> int:
+    from cosim_plugins.diagnose.pipeline import Settings, run
+    from cosim_plugins.diagnose.report import write_outputs
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a directory")
+    candidates = None
+    if args.effects is not None:
+        candidates = [n.strip() for n in args.effects.split(",") if n.strip() and n.strip() != "none"]
+    if args.save_model and not args.add:
+        raise UserError("--save-model saves the model with the effects of --add: name at least one (--add EFFECT)")
+    settings = Settings(model=args.model, effects_files=args.effects_file, add=args.add, candidates=candidates,
+                        reference=args.reference, seed=args.seed, discover=args.discover)
+    diag = run(args.logs, args.validate, settings, progress=_progress)
+    saved = save_model(diag.added_model.savable(), args.save_model) if args.save_model else None
+    files = write_outputs(diag, out)
+    print(format_diagnosis(diag.result))
+    print(f"wrote {len(files)} files to {out} (report.md, diagnosis.json, diagnosis.rrd)")
+    if saved:
+        print(f"wrote the model with {' + '.join(args.add)} to {saved}; use it in a scenario with "
+              f"--set components.estimator.params.model={saved} (the Kalman filter) or "
+              f"components.controller.params.model={saved} (the MPC)")
+    return 0
+
+
+def save_model(model, path) -> Path:
+    """Write ``model`` to ``path`` (.npz, parent folders made); a path that is a folder is an error."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        raise UserError(f"model file {path}: the name must end in .npz")
+    if path.is_dir():
+        raise UserError(f"model file {path} is a directory")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return model.save(path)
+
+
+def format_diagnosis(r: dict) -> str:
+    """Printable summary of a diagnosis: errors by horizon, ranking, what the figures mean, verdict."""
+    from cosim_plugins.diagnose.wording import legend
+
+    hs = list(r["horizons_s"])
+    key = next(k for k, v in r["horizons_s"].items() if v == r["reference_horizon_s"])
+    lines = [f"{'held-out error [mm]':<28}" + "".join(f"{h + ' s':>9}" for h in hs),
+             f"{r['baseline']['model'] + ' (baseline)':<28}" + "".join(f"{_num(r['baseline']['rollout_mm'][h]):>9}"
+                                                                      for h in hs)]
+    if r["added"]:
+        a = r["added"]
+        lines.append(f"{'+ ' + ' + '.join(a['effects']):<28}" + "".join(f"{_num(a['rollout_mm'][h]):>9}" for h in hs))
+    elif r["reference"]:
+        ref = r["reference"]
+        lines.append(f"{ref['model'] + ' (effects ref.)':<28}"
+                     + "".join(f"{_num(ref['rollout_mm'][h]):>9}" for h in hs))
+    lines.append(f"{'noise floor':<28}" + "".join(f"{_num(r['noise']['floor_mm'][h]):>9}" for h in hs))
+    lines += ["", f"{'rank':<5}{'effect':<20}{'error ' + key + ' s':>12}{'reduction':>11}{'t':>7}"]
+    for i, e in enumerate(r["ranking"], 1):
+        if not e.get("identifiable", True):
+            lines.append(f"{'-':<5}{e['effect']:<20}{'not identifiable from these logs':>30}")
+            continue
+        lines.append(f"{i:<5}{e['effect']:<20}{_num(e['rollout_mm'][key]):>12}{e['reduction']:>+11.1%}"
+                     f"{e['t_stat']:>7.1f}")
+    found = r.get("discovered")
+    if found and found["status"] == "found":
+        lines.append(f"{'+':<5}{'discovered':<20}{_num(found['rollout_mm'][key]):>12}{found['reduction']:>+11.1%}"
+                     f"{found['t_stat']:>7.1f}   ({len(found['terms'])} terms, {found['file']})")
+    for note in r.get("fit_notes", ()):
+        lines.append(f"note: {note}")
+    lines += [""] + [f"  {line}" for line in legend()]
+    lines += ["", "verdict: " + r["verdict"]["explanation"]]
+    return "\n".join(lines)
+
+
+def _num(v) -> str:
+    return "-" if v is None else f"{v:.3f}"
