@@ -1,11 +1,11 @@
-"""Model discrepancy: ``cosim diagnose`` finds where a model fails and which physical effect explains it.
+"""Model discrepancy: ``cosim diagnose`` finds where a model fails and which physical effects explain it.
 
 The pipeline (:mod:`.pipeline`) fits a baseline model to raw logs, measures its
 open-loop error against the noise floor (:mod:`.noise`), localises it
 (:mod:`.localise`), ranks candidate effects by a joint refit, discovers a
 form outside the library (:mod:`.discover`), and states a verdict
-(:mod:`.verdict`); :mod:`.report` writes report.md, diagnosis.json and
-diagnosis.rrd (:mod:`.recording`).
+(:mod:`.verdict`); :mod:`.report`
+writes report.md, diagnosis.json and diagnosis.rrd (:mod:`.recording`).
 """
 
 from cosim import hookimpl
@@ -16,3 +16,10 @@ def cosim_register_commands(register):
     from cosim_plugins.diagnose import cli
 
     register(cli.add_commands)
+
+
+@hookimpl
+def cosim_register_components(register):
+    from cosim_plugins.diagnose.excitation import SpinSchedule
+
+    register("diagnose.spin_schedule", SpinSchedule)

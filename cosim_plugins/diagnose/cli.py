@@ -1,4 +1,4 @@
-"""``cosim diagnose``: where a model fails and which physical effect explains it.
+"""``cosim diagnose``: where a model fails and which physical effects explain it.
 
     cosim diagnose LOG... [--validate LOG...] [--model physical] [--effects-file FILE.py]...
                    [--add EFFECT]... [--save-model PATH.npz] [--effects NAME,...] [--reference S] --out DIR
@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from cosim.contract.errors import UserError
+from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, STOPS
 
 
 def add_commands(subparsers) -> None:
@@ -30,6 +31,8 @@ def add_commands(subparsers) -> None:
     d.add_argument("--effects", metavar="NAME[,NAME...]",
                    help="candidate effects to rank (default: every registered effect)")
     d.add_argument("--reference", default="1.0", help="reference horizon for the ranking [s] (default 1.0)")
+    d.add_argument("--max-effects", type=int, default=MAX_EFFECTS, metavar="N",
+                   help=f"effects the stepwise search may name, one per round (default {MAX_EFFECTS})")
     d.add_argument("--discover", action="store_true",
                    help="also fit a sparse combination of candidate force terms to the error left (done anyway "
                         "when no listed effect explains it); writes DIR/discovered_effect.py")
@@ -58,12 +61,14 @@ def cmd_diagnose(args) -> int:
     if args.save_model and not args.add:
         raise UserError("--save-model saves the model with the effects of --add: name at least one (--add EFFECT)")
     settings = Settings(model=args.model, effects_files=args.effects_file, add=args.add, candidates=candidates,
-                        reference=args.reference, seed=args.seed, discover=args.discover)
+                        reference=args.reference, seed=args.seed, discover=args.discover,
+                        max_effects=args.max_effects)
     diag = run(args.logs, args.validate, settings, progress=_progress)
     saved = save_model(diag.added_model.savable(), args.save_model) if args.save_model else None
     files = write_outputs(diag, out)
     print(format_diagnosis(diag.result))
-    print(f"wrote {len(files)} files to {out} (report.md, diagnosis.json, diagnosis.rrd)")
+    print(f"wrote {len(files)} files to {out} (report.md, diagnosis.json, diagnosis.rrd"
+          + (", experiment.yaml, experiment_excitation.csv" if diag.experiment is not None else "") + ")")
     if saved:
         print(f"wrote the model with {' + '.join(args.add)} to {saved}; use it in a scenario with "
               f"--set components.estimator.params.model={saved} (the Kalman filter) or "
@@ -110,11 +115,34 @@ def format_diagnosis(r: dict) -> str:
     if found and found["status"] == "found":
         lines.append(f"{'+':<5}{'discovered':<20}{_num(found['rollout_mm'][key]):>12}{found['reduction']:>+11.1%}"
                      f"{found['t_stat']:>7.1f}   ({len(found['terms'])} terms, {found['file']})")
+    lines += _stepwise_lines(r, key)
     for note in r.get("fit_notes", ()):
         lines.append(f"note: {note}")
     lines += [""] + [f"  {line}" for line in legend()]
     lines += ["", "verdict: " + r["verdict"]["explanation"]]
     return "\n".join(lines)
+
+
+def _stepwise_lines(r: dict, key: str) -> list[str]:
+    """The rounds after the first (each candidate given the effects chosen before) and the chosen set."""
+    sw = r["stepwise"]
+    lines = []
+    for n, entries in enumerate(sw["rounds"][1:], 2):
+        given = " + ".join(st["effects"][0] for st in sw["steps"][: n - 1])
+        lines += ["", f"round {n}, given {given}:"]
+        for e in entries[:4]:
+            lines.append(f"{'':<5}{e['effect']:<20}{_num(e['rollout_mm']):>12}{e['reduction']:>+11.1%}"
+                         f"{e['t_stat']:>7.1f}" if e["identifiable"] else f"{'':<5}{e['effect']:<20}  not identifiable")
+    if sw["steps"]:
+        chosen = " -> ".join(" ~ ".join(st["effects"]) for st in sw["steps"])
+        lines += ["", f"chosen, in order: {chosen}  (joint: {_num(sw['joint']['rollout_mm'][key])} mm at {key} s, "
+                      f"{sw['joint']['reduction'][key]:+.1%}; stopped: {STOPS[sw['stop']]})"]
+    exp = r.get("experiment")
+    if exp:
+        lines.append(f"experiment: {exp['kind']} for {exp['duration_s']:g} s separates "
+                     f"{' / '.join(exp['members'])} by {_num(exp['separation_mm'])} mm"
+                     + (f" ({exp['separation_over_floor']:.1f}x the noise floor)" if exp["separation_over_floor"] else ""))
+    return lines
 
 
 def _num(v) -> str:

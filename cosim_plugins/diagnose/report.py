@@ -21,6 +21,7 @@ import numpy as np
 from cosim_plugins.identify.fit import json_default
 from cosim_plugins.diagnose.localise import FEATURES
 from cosim_plugins.identify.dataset import log_label
+from cosim_plugins.diagnose.stepwise import STOPS
 from cosim_plugins.diagnose.wording import legend, params_text
 
 MAX_LOG_PLOTS = 6
@@ -38,6 +39,8 @@ def write_outputs(diag, out_dir) -> list[Path]:
     if diag.discovered_source:
         files.append(out / diag.result["discovered"]["file"])
         files[-1].write_text(diag.discovered_source)
+    if diag.experiment is not None:
+        files += diag.experiment.write(out)
     files.append(write_report(diag, out, [f.name for f in files if f.suffix == ".png"]))
     files.append(write_recording(diag, out / "diagnosis.rrd"))
     return files
@@ -200,6 +203,7 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
             continue
         lines.append(f"| {i} | {e['effect']} | {e['kind']} | {_f(e['rollout_mm'][key])} | {e['reduction']:+.1%} "
                      f"| {e['t_stat']:.1f} | {params_text(e['params'])} |")
+    lines += _stepwise_section(r, key)
     if r.get("fit_notes"):
         lines += ["", "Notes on the fits:", ""] + [f"- {n}" for n in r["fit_notes"]]
     found = r.get("discovered")
@@ -230,6 +234,43 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def _stepwise_section(r: dict, key: str) -> list[str]:
+    """Markdown: each later round's ranking given the effects chosen before, the chosen set, the experiment."""
+    sw = r["stepwise"]
+    lines = ["", "## Several effects: the stepwise search", "",
+             f"Each round refits every remaining candidate jointly with the effects chosen before it; one is chosen "
+             f"when it passes the verdict's tests given them (at most {sw['max_effects']}, --max-effects). "
+             f"Stopped: {STOPS[sw['stop']]}.", ""]
+    if sw["steps"]:
+        lines += ["| round | chosen | error before [mm] | after [mm] | reduction | t |", "|---|---|---|---|---|---|"]
+        for n, st in enumerate(sw["steps"], 1):
+            name = " or ".join(st["effects"]) + (" (look-alikes)" if st["group"] else "")
+            lines.append(f"| {n} | {name} | {_f(st['rollout_before_mm'])} | {_f(st['rollout_mm'])} | "
+                         f"{st['reduction']:+.1%} | {st['t_stat']:.1f} |")
+        j = sw["joint"]
+        lines += ["", f"Joint: {' + '.join(j['effects'])}, {_f(j['rollout_mm'][key])} mm at {key} s "
+                      f"({j['reduction'][key]:+.1%} against the reference)."]
+    for n, entries in enumerate(sw["rounds"][1:], 2):
+        lines += ["", f"Round {n}, given {' + '.join(st['effects'][0] for st in sw['steps'][: n - 1])}: "
+                  + ", ".join(f"{e['effect']} {e['reduction']:+.1%} (t = {e['t_stat']:.1f})"
+                              for e in entries if e["identifiable"]) + "."]
+    for d in sw["dropped"]:
+        lines.append(f"- dropped by the backward check: {d['effect']} ({d['reduction']:+.1%}, t = {d['t_stat']:.1f})")
+    exp = r.get("experiment")
+    if exp:
+        lines += ["", "## The experiment that tells the look-alikes apart", "",
+                  f"{' / '.join(exp['members'])} predict these logs alike. Over the excitations tried (the spin "
+                  f"rate within the logs' band, a PI controller holding the swimmer on a circle of "
+                  f"{exp['path']['radius_mm']:.0f} mm), {exp['kind']} for {exp['duration_s']:g} s separates their "
+                  f"predictions most: by {_f(exp['separation_mm'])} mm at {key} s"
+                  + (f", {exp['separation_over_floor']:.1f}x the noise floor" if exp["separation_over_floor"] else "")
+                  + f". Run `{exp['files']['scenario']}` (or apply `{exp['files']['excitation']}` as the spin-rate "
+                  "schedule on the rig), add its log.csv to these logs and diagnose again.", "",
+                  "| excitation | separation [mm] |", "|---|---|"]
+        lines += [f"| {x['excitation']} | {_f(x['separation_mm'])} |" for x in exp["tried"]]
+    return lines
 
 
 def _split_text(split: dict) -> str:

@@ -1,23 +1,23 @@
-"""The verdict of a diagnosis: which effect explains the error, if any.
+"""The verdict of a diagnosis: which effects explain the error, if any.
 
 An effect is named only when its joint refit lowers the held-out error at
-the reference horizon
+the reference horizon, against the model before it (the baseline, or the
+effects chosen in earlier rounds of :mod:`.stepwise`; :func:`passes`),
 
 * by at least :data:`MIN_REDUCTION` (relative),
 * significantly: paired per-window improvements, averaged in blocks of
   :data:`BLOCK_S` (neighbouring windows share data), give t >= :data:`MIN_T`,
-* and by at least :data:`MIN_EXPLAINED` of the baseline's excess over the
+* and by at least :data:`MIN_EXPLAINED` of that model's excess over the
   noise floor (the part of the error that is explainable at all).
 
-Otherwise the verdict is "the model is at the noise floor" when the
-baseline's error is within :data:`AT_FLOOR` of the floor, else "no listed
-effect explains the remaining error" with the localisation clues.
-Candidates whose parameters do not change the predictions are not
-identifiable and never named. When a discovered form (:mod:`.discover`)
-leaves at most 1 - :data:`DISCOVERED_MARGIN` of the error the best listed
-effect leaves, the verdict says so instead of naming that effect; when the
-runner-up explains the error about as well (paired t < :data:`MIN_T`), it says
-the logs cannot tell the two apart.
+Look-alikes (:mod:`.lookalike`) are named as a group, never as one member,
+with the experiment that tells them apart. Otherwise the verdict is "the
+model is at the noise floor" when the baseline's error is within
+:data:`AT_FLOOR` of the floor, else "no listed effect explains the remaining
+error" with the localisation clues. Candidates whose parameters do not change
+the predictions are not identifiable and never named. When a discovered form
+(:mod:`.discover`, fitted to what the named effects leave) lowers that error
+by at least :data:`DISCOVERED_MARGIN`, the verdict says so.
 :func:`fit_notes` says in words where a fit is degenerate or two
 parameters trade off.
 """
@@ -29,7 +29,7 @@ import numpy as np
 from cosim_plugins.diagnose.wording import params_text
 
 MIN_REDUCTION = 0.10
-DISCOVERED_MARGIN = 0.3  # a discovered form is preferred when it cuts the best listed effect's error by this share
+DISCOVERED_MARGIN = 0.3  # a discovered form is reported when it cuts the named effects' error by this share
 NOTE_CONDITION = 1e8  # a scaled Jacobian's condition number beyond which the parameters are undetermined
 MIN_T = 3.0
 MIN_EXPLAINED = 0.25
@@ -43,7 +43,24 @@ def paired_t(ref: dict, cand: dict, starts: np.ndarray, block_rows: int) -> floa
     if ok.sum() < 4:
         return 0.0
     d = np.linalg.norm(ref["err"][ok], axis=1) - np.linalg.norm(cand["err"][ok], axis=1)
-    block = starts[ok] // max(block_rows, 1)
+    return _block_t(d, starts[ok], block_rows)
+
+
+def paired_t_horizons(ref: dict, cand: dict, starts: np.ndarray, block_rows: int) -> float:
+    """:func:`paired_t` of the improvement averaged over every horizon: ``ref``, ``cand`` are
+    {horizon: {"valid", "err"}}; windows valid at every horizon count. A lag and a latency that end a
+    second-long prediction at the same point still differ on the way there."""
+    ok = np.logical_and.reduce([ref[h]["valid"] & cand[h]["valid"] for h in ref])
+    if ok.sum() < 4:
+        return 0.0
+    d = np.mean([np.linalg.norm(ref[h]["err"][ok], axis=1) - np.linalg.norm(cand[h]["err"][ok], axis=1)
+                 for h in ref], axis=0)
+    return _block_t(d, starts[ok], block_rows)
+
+
+def _block_t(d: np.ndarray, starts: np.ndarray, block_rows: int) -> float:
+    """t of the mean of ``d`` (per window) over blocks of ``block_rows`` start rows (windows in a block share data)."""
+    block = starts // max(block_rows, 1)
     _, inv = np.unique(block, return_inverse=True)
     means = np.bincount(inv, weights=d) / np.bincount(inv)
     if len(means) < 3:
@@ -52,68 +69,127 @@ def paired_t(ref: dict, cand: dict, starts: np.ndarray, block_rows: int) -> floa
     return float(np.mean(means) / (sd / np.sqrt(len(means)))) if sd > 0 else 0.0
 
 
+def explained_share(err_before: float, left: float, floor: float | None) -> float:
+    """Share of the excess over the noise floor that a model removes (1 without a floor, 0 at the floor)."""
+    excess = max(err_before - floor, 0.0) if floor is not None else 0.0
+    return (err_before - left) / excess if excess > 0 else (1.0 if floor is None else 0.0)
+
+
+def passes(entry: dict, err_before: float | None, floor: float | None, key: str) -> bool:
+    """True when a candidate's refit earns a name against the model before it: an identifiable fit whose held-out
+    error at ``key`` falls by >= :data:`MIN_REDUCTION`, with paired t >= :data:`MIN_T`, removing
+    >= :data:`MIN_EXPLAINED` of that model's excess over the noise floor ``floor`` [mm]."""
+    left = entry["rollout_mm"].get(key)
+    if not entry.get("identifiable", True) or not err_before or left is None:
+        return False
+    return (entry["reduction"] >= MIN_REDUCTION and entry["t_stat"] >= MIN_T
+            and explained_share(err_before, left, floor) >= MIN_EXPLAINED)
+
+
 def verdict(result: dict, key: str) -> dict:
-    """{"effect": name or None, "status", "explanation"} from a diagnosis result (see :mod:`.diagnose`)."""
+    """The verdict of a diagnosis result (see :mod:`.pipeline`).
+
+    Returns ``{"effect": the first effect named or None, "effects": every effect named, in the order chosen,
+    "lookalikes": [[effect, ...], ...] groups the logs cannot tell apart, "status", "explanation"}``; status is
+    "explained", "discovered" (a form outside the library explains what the named effects leave, or all of it),
+    "noise_floor" or "unexplained".
+    """
     ref = result["reference"] or result["baseline"]
     err, floor = ref["rollout_mm"][key], result["noise"]["floor_mm"][key]
-    horizon = f"{key} s"
-    excess = max(err - floor, 0.0) if err is not None and floor is not None else 0.0
+    sw = result["stepwise"]
+    steps = sw["steps"]
+    named = [st["effects"][0] for st in steps if not st["group"]]
+    out = {"effect": named[0] if named else None, "effects": named,
+           "lookalikes": [list(st["effects"]) for st in steps if st["group"]]}
     prefix = _added_text(result, key)
-    best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
+    left = sw["joint"]["rollout_mm"][key] if steps else err
     found = result.get("discovered") or {}
-    best_left = best["rollout_mm"][key] if best and best["rollout_mm"][key] is not None else err
-    if (found.get("status") == "found" and err and found["reduction"] >= MIN_REDUCTION and found["t_stat"] >= MIN_T
-            and found["rollout_mm"][key] <= (1.0 - DISCOVERED_MARGIN) * min(best_left, err)):
-        best_text = (f"the best listed effect, {best['effect']}, lowers the held-out error at {horizon} by "
-                     f"{best['reduction']:.0%}, " if best else "")
-        text = (f"no listed effect explains the error as well as a form outside the library: {best_text}a sparse "
-                f"combination of force terms fitted to what is left lowers it by {found['reduction']:.0%} (from "
-                f"{err:.2f} to {found['rollout_mm'][key]:.2f} mm; t = {found['t_stat']:.1f}). "
-                + _sentence("; ".join(found["words"])) + f". It is written to {found['file']}: rename it, edit its "
-                f"form and refit with --effects-file {found['file']} --add discovered.")
-        return {"effect": None, "status": "discovered", "explanation": prefix + text}
-    if best is not None and err:
-        gain = err - best["rollout_mm"][key]
-        explained = gain / excess if excess > 0 else (1.0 if floor is None else 0.0)
-        if best["reduction"] >= MIN_REDUCTION and best["t_stat"] >= MIN_T and explained >= MIN_EXPLAINED:
-            left = best["rollout_mm"][key]
-            text = (f"{best['effect']} explains the error: refitted with it, the held-out error at {horizon} falls "
-                    f"from {err:.2f} to {left:.2f} mm ({best['reduction']:.0%}; t = {best['t_stat']:.1f}), "
-                    + (f"{min(explained, 1.0):.0%} of the excess over the noise floor ({floor:.2f} mm). "
-                       if floor is not None else "(no noise floor: the camera noise could not be estimated). ")
-                    + f"Fitted: {params_text(best['params'])}.")
-            if floor is not None and left > (1 + AT_FLOOR) * floor:
-                text += (f" The remaining error is still {left / floor:.1f}x the noise floor: add it "
-                         f"(--add {best['effect']}) and diagnose again to look for a second effect.")
-            text += _runner_up_text(best)
-            text += (f" Next: --add {best['effect']} --save-model MODEL.npz saves the model with it, which the "
-                     "Kalman filter and the MPC take as their model (components.estimator.params.model=MODEL.npz).")
-            return {"effect": best["effect"], "status": "explained", "explanation": prefix + text}
+    text = _steps_text(result, key) if steps else ""
+    if (found.get("status") == "found" and left and found["reduction"] >= MIN_REDUCTION
+            and found["t_stat"] >= MIN_T and found["rollout_mm"][key] <= (1.0 - DISCOVERED_MARGIN) * left):
+        best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
+        what = ("what they leave" if steps else "the error") + (
+            "" if steps or best is None else f" (the best listed effect, {best['effect']}, lowers it by only "
+            f"{best['reduction']:.0%})")
+        text += (f"{' And a' if steps else 'A'} form outside the library explains {what}: a sparse combination "
+                 f"of force terms lowers it by a further {found['reduction']:.0%} (from {left:.2f} to "
+                 f"{found['rollout_mm'][key]:.2f} mm at {key} s; t = {found['t_stat']:.1f}). "
+                 + _sentence("; ".join(found["words"])) + f". It is written to {found['file']}: rename it, edit its "
+                 f"form and refit with --effects-file {found['file']} --add discovered.")
+        return {**out, "status": "discovered", "explanation": prefix + text.strip()}
+    if steps:
+        if floor is not None and left > (1 + AT_FLOOR) * floor:
+            text += (f" The remaining error is still {left / floor:.1f}x the noise floor: no other listed effect "
+                     "passes the tests given these." + _discovered_text(result, key))
+        elif floor is not None:
+            text += " What remains is at the noise floor."
+        if named:
+            text += (" Next: --add " + " --add ".join(named) + " --save-model MODEL.npz saves the model with "
+                     + ("it" if len(named) == 1 else "them") + ", which the Kalman filter and the MPC take as their "
+                     "model (components.estimator.params.model=MODEL.npz).")
+        return {**out, "status": "explained", "explanation": prefix + text.strip()}
+    horizon = f"{key} s"
     if err is not None and floor is not None and err <= (1 + AT_FLOOR) * floor:
         text = (f"the model is at the noise floor: its held-out error at {horizon} is {err:.2f} mm against "
                 f"{floor:.2f} mm that a perfect model would show with this camera noise; no effect is needed. "
                 "Next: nothing to add for these logs; a smaller effect would show in longer logs, with less "
                 "camera noise, or in conditions these logs do not cover (other speeds, heights, spin rates).")
-        return {"effect": None, "status": "noise_floor", "explanation": prefix + text}
-    clues = result.get("localisation", {}).get("clues", [])
+        return {**out, "status": "noise_floor", "explanation": prefix + text}
+    best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
     best_text = (f" The best candidate, {best['effect']}, lowers it by {best['reduction']:.0%} "
                  f"(t = {best['t_stat']:.1f}), which is not enough." if best else "")
     floor_text = f"a noise floor of {floor:.2f} mm" if floor is not None else "an unknown noise floor"
     text = (f"no listed effect explains the remaining error: {err:.2f} mm at {horizon} against {floor_text}."
-            f"{best_text} Clues: " + ("; ".join(clues) if clues else "none stand out") + "."
-            + _discovered_text(result, key))
-    return {"effect": None, "status": "unexplained", "explanation": prefix + text}
+            f"{best_text} " + _clues_text(result) + _discovered_text(result, key))
+    return {**out, "status": "unexplained", "explanation": prefix + text}
 
 
-def _runner_up_text(best: dict) -> str:
-    """A sentence when the second-ranked effect explains the error about as well (paired t < :data:`MIN_T`)."""
-    rival = best.get("runner_up")
-    if not rival or rival["reduction"] < MIN_REDUCTION or rival["t_stat"] >= MIN_T:
-        return ""
-    return (f" {rival['effect']} lowers it almost as much ({rival['reduction']:.0%}) and the two do not differ "
-            f"significantly (t = {rival['t_stat']:.1f} < {MIN_T:.0f}): these logs cannot tell {best['effect']} "
-            f"from {rival['effect']}; refit with each (--add) and compare their parameters with what you know of "
-            "the rig, or record logs where they differ.")
+def _steps_text(result: dict, key: str) -> str:
+    """One sentence per chosen step (an effect, or a look-alike group with its experiment), then the joint drop."""
+    sw, floor = result["stepwise"], result["noise"]["floor_mm"][key]
+    parts = []
+    for i, st in enumerate(sw["steps"]):
+        given = "" if i == 0 else f" given {' and '.join(s['effects'][0] for s in sw['steps'][:i])}"
+        share = explained_share(st["rollout_before_mm"], st["rollout_mm"], floor)
+        drop = (f"the held-out error at {key} s falls from {st['rollout_before_mm']:.2f} to {st['rollout_mm']:.2f} mm"
+                f"{given} ({st['reduction']:.0%}; t = {st['t_stat']:.1f}"
+                + (f"; {min(share, 1.0):.0%} of the excess over the noise floor, {floor:.2f} mm)" if floor is not None
+                   else "; no noise floor: the camera noise could not be estimated)"))
+        if not st["group"]:
+            parts.append(f"{st['effects'][0]} explains {'the' if len(sw['steps']) == 1 else 'part of the'} error: "
+                         f"refitted with it, {drop}. Fitted: {params_text(st['params'])}.")
+            continue
+        rivals = ", ".join(f"{m} (t = {ev['t_stat']:.1f} at {key} s, {ev['t_horizons']:.1f} over all horizons; "
+                           f"predictions {ev['differ_mm']:.2f} mm apart; refitted together it adds "
+                           f"{ev['adds']:+.0%})"
+                           for m, ev in st["group_evidence"].items())
+        parts.append(f"{' or '.join(st['effects'])} explain the error about equally well: refitted with "
+                     f"{st['effects'][0]}, {drop}, and these logs cannot tell it from {rivals}. None of them is "
+                     "named: " + _experiment_text(result, st["effects"]))
+    if len(sw["steps"]) > 1:
+        j = sw["joint"]
+        parts.append(f"Together ({' + '.join(j['effects'])}) they lower the held-out error at {key} s from "
+                     f"{sw['steps'][0]['rollout_before_mm']:.2f} to {j['rollout_mm'][key]:.2f} mm "
+                     f"({j['reduction'][key]:.0%}).")
+    for d in sw.get("dropped", ()):
+        parts.append(f"{d['effect']} was dropped once the others were in (it then lowers the error by only "
+                     f"{d['reduction']:.0%}, t = {d['t_stat']:.1f}).")
+    return " ".join(parts)
+
+
+def _experiment_text(result: dict, members: list) -> str:
+    exp = result.get("experiment")
+    if not exp or set(exp["members"]) != set(members):
+        return "record logs where their predictions differ (faster spin-rate changes) and diagnose again."
+    return (f"record the experiment designed to tell them apart ({exp['files']['scenario']}, or apply "
+            f"{exp['files']['excitation']} as the spin-rate schedule on the rig: {exp['duration_s']:.0f} s of "
+            f"{exp['kind']}), on which their predictions differ by {exp['separation_mm']:.2f} mm "
+            f"({exp['separation_over_floor']:.1f}x the noise floor); add its log to these and diagnose again.")
+
+
+def _clues_text(result: dict) -> str:
+    clues = result.get("localisation", {}).get("clues", [])
+    return "Clues: " + ("; ".join(clues) if clues else "none stand out") + "."
 
 
 def _sentence(text: str) -> str:

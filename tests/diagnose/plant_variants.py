@@ -16,6 +16,8 @@ VARIANTS = {
     "wall_drag": [f"{PLANT}.wall_drag_on=true", f"{PLANT}.wall_drag_length=0.008", f"{PLANT}.wall_drag_gain=3"],
     "gradient_force": [f"{PLANT}.gradient_force_on=true", f"{PLANT}.gradient_force_scale=3"],
     "quadratic_drag": [f"{PLANT}.quadratic_drag_on=true"],
+    "flow_and_wall": [f"{PLANT}.background_flow_on=true", f"{PLANT}.flow_x=0.003", f"{PLANT}.wall_drag_on=true",
+                      f"{PLANT}.wall_drag_length=0.008", f"{PLANT}.wall_drag_gain=3"],
 }
 
 

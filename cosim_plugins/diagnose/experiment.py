@@ -1,0 +1,258 @@
+"""The experiment that tells look-alike effects apart (model discrimination: a T-optimal design).
+
+For a look-alike group, every member's fitted model (the model before the
+group plus that member) runs the experiment in closed loop: a pure-pursuit
+controller steers along a horizontal circle in the logs' workspace while a
+candidate excitation (:mod:`.excitation`) sets the spin rate within the logs'
+band. What each member predicts the camera would log (its sensor effects
+applied, no noise) is one synthetic log per member; every other member is
+then scored on it exactly as diagnose scores a model, by its held-out
+open-loop error at the reference horizon with the initial state solved on the
+lead-in, averaged over every horizon of the diagnosis (look-alikes end a
+second-long prediction at nearly the same point and differ on the way). The
+design keeps the excitation whose smallest such separation over the ordered
+pairs of members is largest, and compares it with the noise floor. Units:
+mm, mm/s, Hz, s.
+
+:class:`Experiment` writes ``experiment.yaml`` (a scenario: the path, PI
+control, the excitation as the ``diagnose.spin_schedule`` shaper) and
+``experiment_excitation.csv`` (``t_s,freq_hz``: the spin-rate schedule alone,
+which any rig or simulator applies under its own path controller).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cosim_plugins.diagnose.excitation import Excitation, candidates
+from cosim_plugins.identify.dataset import Dataset
+from cosim_plugins.identify.timeline import Timeline
+from cosim_plugins.raw_log import Log
+
+DURATION_S = 40.0  # length of the designed experiment
+LOOKAHEAD_MM = 9.0  # the design's pure pursuit (the PI controller's default look-ahead)
+PATH_DS_MM = 0.5  # spacing of the circle's points
+RADIUS_MM = (15.0, 35.0)  # the circle's radius: half the logs' horizontal spread, within this range
+INPUT_WINDOW_S = 5.0  # rows of command history an input effect is evaluated on at each step
+BAND_PERCENTILES = (5.0, 95.0)  # the spin-rate band: these percentiles of the logged spin rates
+SCENARIO_FILE, EXCITATION_FILE = "experiment.yaml", "experiment_excitation.csv"
+
+
+@dataclass
+class Experiment:
+    """A designed experiment: its excitation, path and the separation it predicts between the members."""
+
+    members: list
+    excitation: Excitation
+    dt_s: float
+    center_mm: list
+    radius_mm: float
+    separation_mm: float  # smallest mean separation (over windows and horizons) over the ordered pairs of members
+    floor_mm: float | None
+    tried: list = field(default_factory=list)  # [{"excitation", "separation_mm"}] every candidate
+
+    def schedule(self) -> tuple[np.ndarray, np.ndarray]:
+        """(t_s (n,), freq_hz (n,)): the spin rate at every control period of the experiment."""
+        t = np.arange(int(round(self.excitation.duration_s / self.dt_s))) * self.dt_s
+        return t, self.excitation.freq_hz(t)
+
+    def summary(self) -> dict:
+        """diagnosis.json's ``experiment``."""
+        return {"members": self.members, "kind": self.excitation.describe(), "params": self.excitation.params(),
+                "duration_s": self.excitation.duration_s, "separation_mm": self.separation_mm,
+                "floor_mm": self.floor_mm,
+                "separation_over_floor": self.separation_mm / self.floor_mm if self.floor_mm else None,
+                "path": {"plugin": "circle", "radius_mm": self.radius_mm, "center_mm": self.center_mm},
+                "files": {"scenario": SCENARIO_FILE, "excitation": EXCITATION_FILE}, "tried": self.tried}
+
+    def write(self, out_dir) -> list[Path]:
+        """Write ``experiment.yaml`` and ``experiment_excitation.csv`` into ``out_dir``; returns their paths."""
+        out = Path(out_dir)
+        t, f = self.schedule()
+        csv = out / EXCITATION_FILE
+        csv.write_text("t_s,freq_hz\n" + "".join(f"{a:.4f},{b:.4f}\n" for a, b in zip(t, f)))
+        yaml = out / SCENARIO_FILE
+        yaml.write_text(self._scenario_text())
+        return [yaml, csv]
+
+    def _scenario_text(self) -> str:
+        e = self.excitation
+        sep = f"{self.separation_mm:.2f} mm" + (f" ({self.separation_mm / self.floor_mm:.1f}x the noise floor "
+                                                 f"{self.floor_mm:.2f} mm)" if self.floor_mm else "")
+        shaper = ", ".join(f"{k}: {v!r}" if isinstance(v, str) else f"{k}: {v:g}" for k, v in e.params().items())
+        cx, cy, cz = self.center_mm
+        return f"""# The experiment cosim diagnose designed to tell {' / '.join(self.members)} apart.
+#
+# PI path following on a horizontal circle in the logs' workspace while the spin rate follows
+# {e.describe()} (the schedule alone is in {EXCITATION_FILE}: t_s,freq_hz, for a rig or
+# simulator that applies it under its own path controller). The members' predictions of this
+# log differ by {sep} at the reference horizon.
+# Record it on the rig, add its log.csv to the logs and diagnose again. On a simulator, the plant and
+# camera below are the FMU's defaults: set them as the other logs were recorded (--set components.plant.params...).
+name: experiment
+description: spin-rate excitation that tells {' / '.join(self.members)} apart
+duration_s: {e.duration_s:g}
+dt_s: {self.dt_s:g}
+seed: 1
+record: {{omega: shaper.omega}}
+path:
+  plugin: circle
+  params: {{radius_mm: {self.radius_mm:.1f}, center_mm: [{cx:.1f}, {cy:.1f}, {cz:.1f}]}}
+components:
+  plant:
+    plugin: plant.fmu
+    params: {{p0_x: {(cx + self.radius_mm) / 1000:.4f}, p0_y: {cy / 1000:.4f}, p0_z: {cz / 1000:.4f}}}
+    inputs:
+      coil_voltage_amp: {{from: coil_driver.coil_voltage_amp, delay: 1}}
+      coil_voltage_phase: {{from: coil_driver.coil_voltage_phase, delay: 1}}
+      drive_freq: {{from: coil_driver.drive_freq, delay: 1}}
+  camera:
+    plugin: camera.emulator
+    params: {{interval_s: {self.dt_s:g}}}
+    inputs: {{position: plant.position}}
+  estimator:
+    plugin: estimator.passthrough
+    inputs: {{position: camera.position}}
+  controller:
+    plugin: controller.pi
+    inputs: {{position: estimator.position, velocity: estimator.velocity}}
+  shaper:
+    plugin: diagnose.spin_schedule
+    params: {{{shaper}}}
+    inputs: {{omega: controller.omega}}
+  coil_driver:
+    plugin: coil_driver.inverse
+    inputs: {{omega: shaper.omega}}
+"""
+
+
+def design_experiment(step, tl: Timeline, fitter, floor_mm: float | None, say=None,
+                      duration_s: float = DURATION_S) -> Experiment:
+    """The experiment that best separates the members of the look-alike ``step`` (a stepwise Step).
+
+    ``tl``: all logs (the band and the workspace come from them); ``fitter`` gives the lead-in, the
+    horizons and the reference key (the diagnosis's own scoring).
+    """
+    say = say or (lambda msg: None)
+    members = list(step.effects)
+    models = [step.member_fits[m].model for m in members]
+    band = spin_band(tl)
+    center, radius = workspace(tl)
+    path = circle_points(center, radius)
+    tried = candidates(band, duration_s)
+    dt = tl.dt_s
+    n = int(round(duration_s / dt))
+    freq = np.stack([e.freq_hz(np.arange(n) * dt) for e in tried])  # (K, n)
+    start = np.asarray(center) + [radius, 0.0, 0.0]
+    logs = [simulate(jm, freq, dt, path, start) for jm in models]  # per member: (u (K, n, 3), seen (K, n, 3))
+    timelines = [_timeline(u, seen, dt) for u, seen in logs]
+    sep = np.full(len(tried), np.inf)
+    for a, truth in enumerate(timelines):
+        starts = truth.window_starts(fitter.lead, 0.6, rows=fitter.lead + 1, measured_start=False)[::2]
+        for b, jm in enumerate(models):
+            if a == b:
+                continue
+            ev = jm.evaluate(truth, starts, fitter.lead, fitter.steps)
+            ok = np.logical_and.reduce([r["valid"] for r in ev.values()])
+            norm = np.mean([np.linalg.norm(np.nan_to_num(r["err"]), axis=1) for r in ev.values()], axis=0)
+            norm = np.where(ok, norm, np.nan)
+            per = np.array([np.nanmean(norm[truth.log[starts] == k]) for k in range(len(tried))])
+            sep = np.minimum(sep, np.nan_to_num(per, nan=0.0))
+    best = int(np.argmax(sep))
+    record = [{"excitation": e.describe(), "separation_mm": float(s)} for e, s in zip(tried, sep)]
+    say(f"experiment: {tried[best].describe()}: the members' predictions differ by {sep[best]:.2f} mm"
+        + (f" ({sep[best] / floor_mm:.1f}x the noise floor)" if floor_mm else ""))
+    return Experiment(members=members, excitation=tried[best], dt_s=dt, center_mm=[float(x) for x in center],
+                      radius_mm=float(radius), separation_mm=float(sep[best]), floor_mm=floor_mm, tried=record)
+
+
+def spin_band(tl: Timeline) -> tuple[float, float]:
+    """(low, high) [Hz]: the :data:`BAND_PERCENTILES` of the logged spin rates (the rig's proven range)."""
+    f = np.linalg.norm(tl.u, axis=1)
+    f = f[np.isfinite(f) & (f > 0.5)]
+    if len(f) == 0:
+        return 4.0, 16.0
+    lo, hi = np.percentile(f, BAND_PERCENTILES)
+    return float(lo), float(max(hi, lo + 1.0))
+
+
+def workspace(tl: Timeline) -> tuple[np.ndarray, float]:
+    """(centre (3,) [mm], radius [mm]) of a horizontal circle within the measured positions' spread."""
+    p = tl.p[np.all(np.isfinite(tl.p), axis=1)]
+    center = np.median(p, axis=0)
+    spread = np.percentile(np.linalg.norm(p[:, :2] - center[:2], axis=1), 90) if len(p) else 2 * RADIUS_MM[1]
+    return center, float(np.clip(0.5 * spread, *RADIUS_MM))
+
+
+def circle_points(center, radius_mm: float) -> np.ndarray:
+    """(N, 3) [mm] points of a horizontal circle, counter-clockwise, :data:`PATH_DS_MM` apart."""
+    n = max(int(2 * np.pi * radius_mm / PATH_DS_MM), 16)
+    th = 2 * np.pi * np.arange(n) / n
+    return np.asarray(center) + radius_mm * np.stack([np.cos(th), np.sin(th), 0 * th], axis=1)
+
+
+def simulate(jm, freq: np.ndarray, dt_s: float, path: np.ndarray, start_mm) -> tuple[np.ndarray, np.ndarray]:
+    """A fitted model in closed loop under K spin-rate schedules at once.
+
+    Args:
+        jm: a JointModel (host, force, input and sensor effects).
+        freq: (K, n) spin rate [Hz] per control period.
+        path: (N, 3) [mm] closed path the pure pursuit follows; start_mm (3,) the start at rest.
+    Returns:
+        (u (K, n, 3) logged commands [Hz], seen (K, n, 3) what the camera logs [mm], no noise).
+    """
+    k, n = freq.shape
+    x = np.zeros((6, k))
+    x[:3] = np.asarray(start_mm, dtype=float)[:, None]
+    u = np.zeros((n, k, 3))
+    pos = np.empty((n + 1, k, 3))
+    pos[0] = x[:3].T
+    ahead = int(round(LOOKAHEAD_MM / PATH_DS_MM))
+    window = max(1, int(round(INPUT_WINDOW_S / dt_s)))
+    prm = jm.prm
+    prev = None
+    for i in range(n):
+        here = x[:3].T
+        d = ((path[None] - here[:, None]) ** 2).sum(-1)  # (K, N)
+        target = path[(d.argmin(1) + ahead) % len(path)]
+        to = target - here
+        u[i] = freq[:, i, None] * to / np.maximum(np.linalg.norm(to, axis=1, keepdims=True), 1e-9)
+        ue = _effective(jm, u[max(0, i - window + 1): i + 1], dt_s, prm)
+        ut = np.ascontiguousarray(ue.T)
+        if jm._held:
+            x = jm.host.predict_t(x, ut, dt_s, ut if prev is None else prev)
+        else:
+            x = jm._step(x, ut)
+        prev = ut
+        pos[i + 1] = x[:3].T
+    traj = pos.transpose(1, 0, 2)  # (K, n + 1, 3)
+    for effect in jm.sensors:
+        own = {q.name: prm[f"{effect.name}.{q.name}"] for q in effect.params}
+        traj = effect.transform(traj, dt_s, own)
+    return u.transpose(1, 0, 2), traj[:, :n]
+
+
+def _effective(jm, history: np.ndarray, dt_s: float, prm: dict) -> np.ndarray:
+    """(K, 3) the command the swimmer follows now: the input effects on the recent ``history`` (m, K, 3)."""
+    if not jm.inputs:
+        return history[-1]
+    out = np.empty(history.shape[1:])
+    for j in range(history.shape[1]):
+        seq = history[:, j]
+        for effect in jm.inputs:
+            seq = effect.transform(seq, dt_s, {q.name: prm[f"{effect.name}.{q.name}"] for q in effect.params})
+        out[j] = seq[-1]
+    return out
+
+
+def _timeline(u: np.ndarray, seen: np.ndarray, dt_s: float) -> Timeline:
+    """One Timeline of K noiseless synthetic logs (u, seen: (K, n, 3))."""
+    k, n = u.shape[:2]
+    t = np.arange(n) * dt_s
+    none = np.zeros(n, dtype=bool)
+    logs = [Log(path=f"experiment_{j}", t_s=t, omega_hz=u[j], p_mm=seen[j], gap=none, repeat=none, outlier=none)
+            for j in range(k)]
+    return Timeline.from_dataset(Dataset.from_logs(logs))

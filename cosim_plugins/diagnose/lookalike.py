@@ -1,0 +1,77 @@
+"""Look-alike effects: candidates the logs cannot tell apart, declared as a group instead of one name.
+
+The round's best candidate (by its drop of held-out error at the reference
+horizon) is compared with every rival that lowers the model's error too (by
+at least :data:`~cosim_plugins.diagnose.verdict.MIN_REDUCTION`, with paired
+t >= :data:`~cosim_plugins.diagnose.verdict.MIN_T`):
+
+* the best is told apart from a rival when it is significantly better at the
+  reference horizon, or averaged over every horizon (a lag and a latency that
+  end a second-long prediction at the same point still differ on the way);
+* a rival significantly better than the best averaged over every horizon
+  (and not significantly worse at the reference) is the better explanation:
+  it takes the best's place;
+* otherwise, or when the two predict these logs less than
+  :data:`SAME_PREDICTION` of the noise floor apart (no excitation in the logs
+  separates them beyond the camera's noise), they are look-alikes.
+
+Typical groups: an actuation lag, a camera latency and a heading lag on logs
+whose spin rate changes slowly; a quadratic drag and a slower velocity
+response on logs at one speed. :mod:`.experiment` designs the log that tells
+a group's members apart.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T
+
+SAME_PREDICTION = 0.5  # predictions this share of the noise floor apart (or closer) cannot be told apart
+
+
+def group_of(fitter, best: dict, entries: list, fits: dict, floor: float | None, key: str):
+    """(members, evidence): the leading effect's name first, then each rival it cannot be told from.
+
+    The leader is ``best`` unless a rival beats it over every horizon (see the module doc). ``entries``: the
+    round's rank entries; ``fits``: {effect: Fit} of the round; ``fitter`` gives the verdict's paired t at one
+    horizon (``paired_t``) and over all (``paired_t_horizons``); ``floor`` [mm] the noise floor at ``key``.
+    ``evidence``: {rival: {"t_stat", "t_horizons", "differ_mm"}} (t > 0: the leader is better).
+    """
+    rivals = [e["effect"] for e in entries if e["effect"] != best["effect"] and e["identifiable"]
+              and e["reduction"] >= MIN_REDUCTION and e["t_stat"] >= MIN_T]
+    lead = best["effect"]
+    for name in rivals:  # a rival better over every horizon, and not worse at the reference, leads instead
+        t_ref = fitter.paired_t(fits[name].ev[key], fits[lead].ev[key])
+        if t_ref < MIN_T and fitter.paired_t_horizons(fits[lead], fits[name]) >= MIN_T:
+            lead = name
+    members, evidence = [lead], {}
+    for name in [best["effect"], *rivals]:
+        if name == lead:
+            continue
+        ev = evidence_of(fitter, fits[lead], fits[name], key)
+        if ((ev["t_stat"] < MIN_T and abs(ev["t_horizons"]) < MIN_T)
+                or (floor is not None and ev["differ_mm"] < SAME_PREDICTION * floor)):
+            members.append(name)
+            evidence[name] = ev
+    return members, evidence
+
+
+def evidence_of(fitter, lead, rival, key: str) -> dict:
+    """How far the data tell ``lead`` from ``rival`` (two Fits): paired t at ``key`` and over every horizon
+    (positive: the lead is better) and how far their predictions are apart [mm]."""
+    return {"t_stat": fitter.paired_t(rival.ev[key], lead.ev[key]), "t_horizons": fitter.paired_t_horizons(rival, lead),
+            "differ_mm": predictions_apart(lead.ev, rival.ev)}
+
+
+def predictions_apart(a: dict, b: dict) -> float:
+    """Mean distance [mm] between two models' predictions, over the horizons and the windows valid for both.
+
+    ``a``, ``b``: {horizon: {"valid": (w,) bool, "err": (w, 3) predicted - measured}}; the measurement cancels.
+    """
+    out = []
+    for h in a:
+        ok = a[h]["valid"] & b[h]["valid"]
+        if ok.any():
+            out.append(float(np.mean(np.linalg.norm(a[h]["err"][ok] - b[h]["err"][ok], axis=1))))
+    return float(np.mean(out)) if out else 0.0

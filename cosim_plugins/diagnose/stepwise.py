@@ -1,0 +1,226 @@
+"""Several missing effects, chosen stepwise: forward selection with conditional re-ranking, then a backward check.
+
+Round r refits every remaining candidate jointly with the model of round
+r - 1 (the baseline's parameters, the effects chosen so far and the
+candidate's, all free; the candidate's parameters start at its own listed
+and data-driven starts, everything else at the last solution) and ranks them
+by the held-out error at the reference horizon. The best candidate is chosen
+when it passes the verdict's gates *given* the model before it
+(:func:`cosim_plugins.diagnose.verdict.passes`: relative drop, paired t and
+share of the remaining excess over the noise floor). When rivals explain the
+error about as well (:mod:`.lookalike`) and add nothing to it once refitted
+together (two effects present at once each explain a part, and each adds to
+the other), the round's choice is the group; its best member stands in for it
+in later rounds. The chosen model is then
+re-polished from its own solution (so a later candidate gains nothing from
+extra iterations alone) and the next round starts.
+
+From the second round on, every remaining candidate is screened by a quick
+joint fit first and only the most promising get the full one (:func:`rank`).
+
+Selection stops at the noise floor, when nothing passes, when no candidate
+is left or after ``max_effects`` rounds. Then the backward check refits the
+model without each chosen effect in turn and drops an effect that no longer
+passes the gates against the model without it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from cosim_plugins.diagnose.lookalike import evidence_of, group_of
+from cosim_plugins.diagnose.verdict import AT_FLOOR, MIN_REDUCTION, MIN_T, passes
+
+MAX_EFFECTS = 3  # default of --max-effects
+SCREEN_KEEP = 3  # rounds after the first: candidates given a full fit after the quick screen
+SCREEN_MIN = 0.03  # ... and only those whose quick fit lowers the error by at least this share
+#: Why a search stopped, in words.
+STOPS = {"noise_floor": "the error is at the noise floor", "none_passes": "no remaining candidate passes",
+         "max_effects": "--max-effects reached", "no_candidates": "no candidate left"}
+
+
+@dataclass
+class Fit:
+    """A model and its held-out evaluation: ``ev`` {horizon: {"valid", "err"}}, ``summary`` {"rollout_mm", ...}."""
+
+    model: object
+    ev: dict
+    summary: dict
+    fitted: object = None  # the joint fit's outcome (parameters, standard errors), when a fit made it
+
+    def error(self, key: str) -> float | None:
+        """Mean held-out error [mm] at horizon ``key``."""
+        return self.summary["rollout_mm"][key]
+
+
+@dataclass
+class Step:
+    """One round's choice: ``effects`` is one name, or a look-alike group (best member first).
+
+    ``entry`` is the best member's rank entry given the model before (reduction, t, parameters);
+    ``fit`` the model with it; ``before`` the model it was compared with.
+    """
+
+    effects: list
+    entry: dict
+    fit: Fit
+    before: Fit
+    group_evidence: dict = field(default_factory=dict)  # {member: {"t_stat", "differ_mm"}} for a group
+    member_fits: dict = field(default_factory=dict)  # {member: Fit} of every member, given the model before
+
+    @property
+    def is_group(self) -> bool:
+        """True when the logs cannot tell the members of this step apart."""
+        return len(self.effects) > 1
+
+
+@dataclass
+class Selection:
+    """What the stepwise search chose, the ranking of every round, what the backward check dropped."""
+
+    steps: list
+    rounds: list  # [[rank entry, ...] per round], each sorted best first
+    final: Fit
+    start: Fit  # the reference the first round compared with
+    stop: str  # "noise_floor" | "none_passes" | "max_effects" | "no_candidates"
+    dropped: list = field(default_factory=list)  # [{"effect", "reduction", "t_stat"}] by the backward check
+    candidates: dict = field(default_factory=dict)  # round 1: {effect: Fit}
+
+    @property
+    def named(self) -> list:
+        """Effects named one by one, in the order chosen (not the look-alike groups)."""
+        return [s.effects[0] for s in self.steps if not s.is_group]
+
+    @property
+    def groups(self) -> list:
+        """Look-alike groups, each a list of effect names."""
+        return [list(s.effects) for s in self.steps if s.is_group]
+
+    @property
+    def chosen(self) -> list:
+        """The effects in the final model: every named effect and each group's stand-in."""
+        return [s.effects[0] for s in self.steps]
+
+
+def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor: dict, key: str,
+           say=None) -> Selection:
+    """Choose up to ``max_effects`` of ``candidates`` (Effects) stepwise on top of ``start``; see the module doc.
+
+    ``first`` is the first round, (entries sorted best first, {effect: Fit}), from :func:`rank` (the noise
+    floor is measured on its fits); ``fitter`` provides ``with_effects(fit, effects) -> (Fit, identifiable)``,
+    ``refit(model) -> Fit``, ``entry(effect, fit, identifiable, fit_before) -> rank entry``,
+    ``without(final, keep) -> Fit`` and ``paired_t``; ``floor`` is {horizon: noise floor [mm] or None}.
+    """
+    say = say or (lambda msg: None)
+    current, steps, rounds, remaining = start, [], [], list(candidates)
+    by_name = {e.name: e for e in candidates}
+    stop = "max_effects"
+    for round_no in range(1, max_effects + 1):
+        if not remaining:
+            stop = "no_candidates"
+            break
+        if _at_floor(current.error(key), floor.get(key)):
+            stop = "noise_floor"
+            break
+        if round_no == 1:
+            entries, fits = first
+        else:
+            say(f"round {round_no}: {len(remaining)} candidates given {', '.join(s.effects[0] for s in steps)}")
+            entries, fits = rank(fitter, current, remaining, key, say, screen=True)
+        rounds.append(entries)
+        best = next((e for e in entries if e["identifiable"]), None)
+        if best is None or not passes(best, current.error(key), floor.get(key), key):
+            stop = "none_passes"
+            break
+        members, evidence = group_of(fitter, best, entries, fits, floor.get(key), key)
+        lead = next(e for e in entries if e["effect"] == members[0])
+        if lead is not best and not passes(lead, current.error(key), floor.get(key), key):
+            rival, lead = lead["effect"], best  # better over the horizons, but not enough to be named alone
+            members, evidence = [best["effect"], rival], {rival: evidence_of(fitter, fits[best["effect"]],
+                                                                            fits[rival], key)}
+        members, evidence = _interchangeable(fitter, members, evidence, fits, by_name, key, say)
+        chosen = fitter.refit(fits[lead["effect"]].model)
+        steps.append(Step(effects=members, entry=lead, fit=chosen, before=current, group_evidence=evidence,
+                          member_fits={m: fits[m] for m in members}))
+        say(f"round {round_no}: chose {' ~ '.join(members)}: {current.error(key):.3f} -> {chosen.error(key):.3f} mm")
+        current = chosen
+        remaining = [e for e in remaining if e.name not in members]
+    selection = Selection(steps=steps, rounds=rounds, final=current, start=start, stop=stop, candidates=first[1])
+    if len(steps) >= 2:
+        _backward(fitter, selection, by_name, floor.get(key), key, say)
+    return selection
+
+
+def _interchangeable(fitter, members: list, evidence: dict, fits: dict, by_name: dict, key: str, say):
+    """(members, evidence) without the rivals that add to the leader: each rival is refitted jointly with the
+    leader, and one that still lowers the error (>= MIN_REDUCTION, t >= MIN_T) explains something else (two
+    effects present at once), so it is left to the next round instead of grouped."""
+    kept = [members[0]]
+    for name in members[1:]:
+        both, identifiable = fitter.with_effects(fits[members[0]], [by_name[name]])
+        entry = fitter.entry(by_name[name], both, identifiable, fits[members[0]])
+        if entry["reduction"] >= MIN_REDUCTION and entry["t_stat"] >= MIN_T:
+            say(f"  {name} adds {entry['reduction']:+.1%} to {members[0]} (t = {entry['t_stat']:.1f}): not a look-alike")
+            evidence = {k: v for k, v in evidence.items() if k != name}
+            continue
+        evidence[name] = {**evidence[name], "adds": entry["reduction"], "adds_t": entry["t_stat"]}
+        kept.append(name)
+    return kept, evidence
+
+
+def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False) -> tuple[list, dict]:
+    """(rank entries sorted best first, {effect: Fit}): each effect refitted jointly with ``before``'s model.
+
+    ``screen``: every effect first gets a quick fit (``fitter.with_effects(..., quick=True)``); the full fit
+    goes to the :data:`SCREEN_KEEP` best whose quick drop reaches :data:`SCREEN_MIN`, the others keep their
+    quick entry (marked ``"screened": True``). A quick fit stops sooner, so it tends to understate a drop:
+    :data:`SCREEN_MIN` is well below the verdict's own threshold.
+    """
+    entries, fits = {}, {}
+    todo = list(effects)
+    if screen and len(effects) > SCREEN_KEEP:
+        for effect in effects:
+            fit, identifiable = fitter.with_effects(before, [effect], quick=True)
+            entries[effect.name] = {**fitter.entry(effect, fit, identifiable, before), "screened": True}
+            fits[effect.name] = fit
+        hopeful = sorted((e for e in entries.values() if e["identifiable"] and e["reduction"] >= SCREEN_MIN),
+                         key=lambda e: -e["reduction"])[:SCREEN_KEEP]
+        todo = [e for e in effects if e.name in {h["effect"] for h in hopeful}]
+        if say:
+            say(f"  screened {len(effects)} candidates by a quick fit; refitting "
+                + (", ".join(e.name for e in todo) or "none"))
+    for effect in todo:
+        fit, identifiable = fitter.with_effects(before, [effect])
+        entries[effect.name] = fitter.entry(effect, fit, identifiable, before)
+        fits[effect.name] = fit
+    ordered = sorted(entries.values(), key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)
+    if say:
+        for e in ordered:
+            say(f"  {e['effect']}: " + (f"{e['reduction']:+.1%} at {key} s (t = {e['t_stat']:.1f})"
+                                        if e["identifiable"] else "not identifiable from these logs")
+                + (" (quick fit)" if e.get("screened") else ""))
+    return ordered, fits
+
+
+def _backward(fitter, sel: Selection, by_name: dict, floor: float | None, key: str, say) -> None:
+    """Drop, one at a time, a chosen effect that no longer earns its place once the others are in."""
+    while len(sel.steps) >= 2:
+        trials = []
+        for i, step in enumerate(sel.steps):
+            keep = [by_name[s.effects[0]] for j, s in enumerate(sel.steps) if j != i]
+            without = fitter.without(sel.final, keep)
+            entry = fitter.entry(by_name[step.effects[0]], sel.final, True, without)
+            trials.append((entry["reduction"], i, entry, without))
+        reduction, i, entry, without = min(trials, key=lambda x: x[0])
+        if passes(entry, without.error(key), floor, key):
+            return
+        step = sel.steps.pop(i)
+        say(f"backward: {step.effects[0]} dropped (it lowers the error by only {reduction:+.1%}, t = "
+            f"{entry['t_stat']:.1f}, once the others are in)")
+        sel.dropped.append({"effect": step.effects[0], "reduction": reduction, "t_stat": entry["t_stat"]})
+        sel.final = without
+
+
+def _at_floor(err: float | None, floor: float | None) -> bool:
+    return err is not None and floor is not None and err <= (1.0 + AT_FLOOR) * floor
+

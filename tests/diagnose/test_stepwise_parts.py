@@ -1,0 +1,81 @@
+"""The parts of the stepwise search: the naming gates at their edges, look-alike evidence, excitations, the
+experiment's closed loop, and the command shaper that applies a designed excitation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.contract.plugins import lookup
+from cosim_plugins.diagnose.excitation import Excitation, SpinSchedule, candidates
+from cosim_plugins.diagnose.experiment import circle_points, simulate
+from cosim_plugins.diagnose.lookalike import predictions_apart
+from cosim_plugins.diagnose.verdict import MIN_EXPLAINED, MIN_REDUCTION, MIN_T, passes
+from cosim_plugins.identify.joint import JointModel
+
+KEY = "1.0"
+
+
+def _entry(reduction, t, left_mm, identifiable=True):
+    return {"reduction": reduction, "t_stat": t, "rollout_mm": {KEY: left_mm}, "identifiable": identifiable}
+
+
+@pytest.mark.parametrize("reduction, t, left, floor, named", [
+    (MIN_REDUCTION, MIN_T, 0.5, 0.1, True),  # every gate met exactly
+    (MIN_REDUCTION - 1e-6, 5.0, 0.5, 0.1, False),  # the drop just short
+    (0.5, MIN_T - 1e-6, 0.5, 0.1, False),  # not significant
+    (0.2, 5.0, 0.8, 0.1, False),  # 1.0 -> 0.8 mm removes 0.2 / 0.9 = 22 % of the excess: short of 25 %
+    (0.2, 5.0, 0.77, 0.1, True),  # 0.23 / 0.9 = 26 % of the excess
+    (0.2, 5.0, 0.8, None, True),  # no floor: the share is not asked
+])
+def test_naming_gates_at_their_edges(reduction, t, left, floor, named):
+    assert MIN_EXPLAINED == 0.25
+    assert passes(_entry(reduction, t, left), 1.0, floor, KEY) is named
+
+
+def test_an_unidentifiable_candidate_is_never_named():
+    assert not passes(_entry(0.9, 50.0, 0.1, identifiable=False), 1.0, 0.05, KEY)
+
+
+def test_predictions_apart_cancels_the_measurement():
+    rng = np.random.default_rng(0)
+    meas = rng.normal(size=(50, 3))
+    a = {KEY: {"valid": np.ones(50, bool), "err": meas + [0.3, 0.0, 0.0]}}
+    b = {KEY: {"valid": np.ones(50, bool), "err": meas - [0.0, 0.4, 0.0]}}
+    assert predictions_apart(a, b) == pytest.approx(0.5)
+
+
+def test_excitations_stay_in_the_band():
+    t = np.arange(2000) * 0.02
+    for e in candidates((4.0, 16.0), 40.0):
+        f = e.freq_hz(t)
+        assert f.min() >= 4.0 - 1e-9 and f.max() <= 16.0 + 1e-9, e.describe()
+    steps = Excitation("steps", 4.0, 16.0, 40.0, period_s=1.0).freq_hz(t)
+    assert steps[0] == 16.0 and steps[25] == 4.0 and steps[50] == 16.0  # half a period each
+    with pytest.raises(ValueError, match="kind"):
+        Excitation("sawtooth", 4.0, 16.0, 40.0)
+
+
+def test_spin_schedule_keeps_the_direction_and_sets_the_rate():
+    shaper = SpinSchedule()
+    shaper.setup({"kind": "steps", "f_lo_hz": 5.0, "f_hi_hz": 10.0, "period_s": 2.0, "dt": 0.02}, None)
+    out = shaper.step(1.5, {"omega": np.array([0.0, 3.0, 4.0])})["omega"]  # second half period: 5 Hz
+    assert np.allclose(out, 2 * np.pi * 5.0 * np.array([0.0, 0.6, 0.8]))
+    assert np.allclose(shaper.step(0.0, {"omega": np.zeros(3)})["omega"], 0.0)
+    assert lookup("component", "diagnose.spin_schedule") is SpinSchedule
+
+
+def test_the_design_loop_keeps_a_model_on_its_circle():
+    """The experiment's closed loop: the physical model under a stepped spin rate follows the circle."""
+    model = lookup("model", "physical")()
+    model.dt_s = 0.02
+    jm = JointModel(model)
+    path = circle_points(np.zeros(3), 25.0)
+    freq = np.stack([Excitation("steps", 4.0, 12.0, 20.0, period_s=2.0).freq_hz(np.arange(1000) * 0.02)])
+    u, seen = simulate(jm, freq, 0.02, path, [25.0, 0.0, 0.0])
+    assert u.shape == (1, 1000, 3) and seen.shape == (1, 1000, 3)
+    assert np.allclose(np.linalg.norm(u[0], axis=1), freq[0])  # the spin rate is the schedule's
+    radius = np.linalg.norm(seen[0, 200:, :2], axis=1)
+    assert np.all(np.abs(radius - 25.0) < 6.0) and np.all(np.abs(seen[0, 200:, 2]) < 6.0)
+    angle = np.unwrap(np.arctan2(seen[0, :, 1], seen[0, :, 0]))
+    assert angle[-1] - angle[0] > np.pi  # it travels along the circle
