@@ -1,9 +1,13 @@
-"""Blind bench of `cosim diagnose`: logs from an independent simulator, one hidden effect each; prints JSON.
+"""Blind bench of `cosim diagnose`: logs from an independent simulator, hidden effects; prints JSON.
 
 The logs come from ``benchmarks/blind_sim.py`` (its own equations, no code
-shared with ``cosim``): cases drawn at random (seeded) over wide regimes,
-each with one hidden library effect, none (false-alarm cases) or one outside
-the library. Every case is diagnosed blind, as a user would
+shared with ``cosim``): cases drawn at random (seeded) over wide regimes, in
+groups (``--groups``, default ``library,none,outside``): one hidden library
+effect (``library``), none (``none``: false-alarm cases), one outside the
+library (``outside``), two at once (``multi``: two library effects, or one
+library and one outside), or one of the look-alike family (``lookalike``:
+actuation lag, camera latency, heading lag, now and then a quadratic drag) in
+regimes where they mimic each other. Every case is diagnosed blind, as a user would
 (``cosim diagnose LOGS --discover``: every library effect ranked, the
 discovery run), then refitted with the true form (the simulator's own law as
 an effect file, started at the truth: the reduction a perfect diagnosis
@@ -24,18 +28,43 @@ it finishes; at the end one JSON object is printed:
   reaches >= 50 % of the true form's reduction), over the outside cases with
   a true form (a time-periodic force has none: no force in p, v, u can
   express it; those are counted under ``time_varying``);
-* ``seconds_per_case`` (median wall time of the diagnosis and the true-form refit).
+* ``multi``: ``cases``; ``all_named`` (fraction whose verdict names every
+  hidden library effect), ``extra_named`` (cases naming a library effect not
+  hidden); ``by_kind``: the same for two library effects (``library``) and a
+  library and an outside one (``outside``). Each hidden effect with a true
+  form is refitted alone: ``true_reductions`` in the records;
+* ``lookalike``: ``cases``; ``wrong_named`` (cases naming an effect not
+  hidden while the hidden one is in no declared look-alike group);
+  ``resolved`` (fraction named right at once, or declared in a look-alike
+  group and named right once the designed experiment's log is added: the
+  bench simulates the case's plant under the experiment's
+  ``experiment_excitation.csv`` and diagnoses again); ``named_at_once``
+  (fraction); ``declared`` (cases whose hidden effect is in a declared
+  group); ``experiments`` (cases whose experiment was simulated);
+* ``seconds_per_case`` (median wall time of the diagnoses and the true-form refits).
 
     .venv/bin/python benchmarks/blind.py [--cases 60] [--seed 0] [--jobs 2] [--out runs/blind]
+    .venv/bin/python benchmarks/blind.py --groups multi,lookalike --multi-cases 12 --lookalike-cases 12 --out DIR
     .venv/bin/python benchmarks/blind.py --write-case outside:rotating_flow [--seed 3] --out DIR
+    .venv/bin/python benchmarks/blind.py --write-case lookalike:sensor_latency --schedule CSV --out DIR
 
 ``--summarise OUT/cases.jsonl`` prints the figures of the cases recorded so
 far (a bench stopped midway keeps every finished case); ``--resume`` goes on
 with such a bench: the finished cases of ``OUT/cases.jsonl`` are kept and
-only the others are diagnosed (same ``--cases`` and ``--seed``).
+only the others are diagnosed (same ``--cases``, ``--multi-cases``,
+``--lookalike-cases`` and ``--seed``; the records of groups not run this time
+are kept as they are).
 ``--write-case GROUP[:EFFECT]`` only simulates one case into ``DIR/logs`` (and
 its true form into ``DIR/true_form.py``, its truth into ``DIR/case.json``):
-logs to try ``cosim diagnose`` on by hand.
+logs to try ``cosim diagnose`` on by hand; GROUP is also ``multi`` (EFFECT:
+two names joined by ``+``) or ``lookalike``. With ``--schedule CSV`` (a
+designed experiment's ``t_s,freq_hz``) it also simulates that experiment's
+log into ``DIR/experiment/log_experiment.csv``.
+
+Records carry ``group`` and ``index`` (the index within the group's own draw:
+``draw_cases`` for library/none/outside, ``draw_multi_cases``,
+``draw_lookalike_cases``); case folders are ``case_NNN``, ``multi_NNN`` and
+``lookalike_NNN``.
 """
 
 from __future__ import annotations
@@ -62,43 +91,112 @@ MIN_T = 3.0  # the verdict's paired t below which two effects are not told apart
 GOOD_SHARE = 0.5  # discovered_ok: the discovered form reaches this share of the true form's reduction
 
 
-def run_case(case: blind_sim.Case, out: Path) -> dict:
-    """Simulate, diagnose blind, refit with the true form; one JSON-able record."""
+BASE_GROUPS = ("library", "none", "outside")  # drawn together by blind_sim.draw_cases
+GROUPS = BASE_GROUPS + ("multi", "lookalike")
+
+
+def family(group: str) -> str:
+    """The draw a group's cases come from: "base" (draw_cases), "multi" or "lookalike"."""
+    return group if group in ("multi", "lookalike") else "base"
+
+
+def case_folder(out: Path, case: blind_sim.Case) -> Path:
+    """The case's folder under ``out``: case_NNN (library, none, outside), multi_NNN or lookalike_NNN."""
+    return out / (f"case_{case.index:03d}" if family(case.group) == "base" else f"{case.group}_{case.index:03d}")
+
+
+def _diagnose(logs) -> tuple[dict, object]:
+    """(record fields, Diagnosis) of a blind diagnosis of ``logs`` (``cosim diagnose LOGS --discover``)."""
     from cosim.contract import plugins
     from cosim_plugins.diagnose.pipeline import Settings, run
 
-    folder = out / f"case_{case.index:03d}"
-    logs = blind_sim.simulate(case, folder / "logs")
-    t0 = time.perf_counter()
     plugins.reset()
-    diag = run(logs, settings=Settings(discover=True)).result
+    d = run(logs, settings=Settings(discover=True))
+    diag = d.result
     key = next(k for k, v in diag["horizons_s"].items() if v == diag["reference_horizon_s"])
     ranked = [e for e in diag["ranking"] if e.get("identifiable", True)]
     top = ranked[0] if ranked else None
     found = diag.get("discovered") or {}
-    record = {
-        "index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect, "law": case.law,
-        "truth": case.truth, "regime": case.regime,
+    verdict = diag["verdict"]
+    fields = {
         "baseline_mm": diag["baseline"]["rollout_mm"][key], "floor_mm": diag["noise_floor_mm"],
         "top": top["effect"] if top else None, "top_reduction": top["reduction"] if top else 0.0,
         "top_t": top["t_stat"] if top else 0.0, "runner_up": (top or {}).get("runner_up"),
-        "named": diag["verdict"]["effect"],
-        "status": diag["verdict"]["status"], "fit_notes": diag.get("fit_notes", []),
+        "named": verdict["effect"], "named_effects": list(verdict.get("effects") or []),
+        "lookalikes": [list(g) for g in verdict.get("lookalikes") or []],
+        "status": verdict["status"], "fit_notes": diag.get("fit_notes", []),
         "ranking": [[e["effect"], round(e["reduction"], 4)] for e in diag["ranking"]],
         "discovered": {k: found.get(k) for k in ("status", "reduction", "t_stat", "terms", "words")},
-        "true_reduction": None,
     }
-    if case.true_form:
-        form = folder / "true_form.py"
-        form.write_text(case.true_form)
-        plugins.reset()
-        true = run(logs, settings=Settings(effects_files=[str(form)], add=[case.true_form_name],
-                                           candidates=[])).result
-        record["true_reduction"] = true["added"]["reduction"][key]
-        record["true_params"] = {k: v["value"] for k, v in true["added"]["params"].items()}
+    return fields, d
+
+
+def _true_refit(logs, source: str, name: str, path: Path) -> tuple[float, dict]:
+    """(held-out reduction at the reference horizon, fitted params) of the model plus one true form."""
+    from cosim.contract import plugins
+    from cosim_plugins.diagnose.pipeline import Settings, run
+
+    path.write_text(source)
+    plugins.reset()
+    true = run(logs, settings=Settings(effects_files=[str(path)], add=[name], candidates=[])).result
+    key = next(k for k, v in true["horizons_s"].items() if v == true["reference_horizon_s"])
+    return true["added"]["reduction"][key], {k: v["value"] for k, v in true["added"]["params"].items()}
+
+
+def run_case(case: blind_sim.Case, out: Path) -> dict:
+    """Simulate, diagnose blind, refit with the true form(s), and for a look-alike case declared as a group run
+    the designed experiment and diagnose again; one JSON-able record."""
+    from cosim.contract import plugins
+
+    folder = case_folder(out, case)
+    logs = blind_sim.simulate(case, folder / "logs")
+    t0 = time.perf_counter()
+    fields, d = _diagnose(logs)
+    record = {"index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect, "law": case.law,
+              "truth": case.truth, "regime": case.regime, **fields, "true_reduction": None}
+    if case.group == "multi":
+        record.update(effects=case.effects, laws=case.laws, truths=case.truths,
+                      hidden_library=[e for e in case.effects if e in blind_sim.LIBRARY],
+                      true_reductions={}, true_params={})
+        for effect, source, name in zip(case.effects, case.true_forms, case.true_form_names):
+            if source:
+                red, prm = _true_refit(logs, source, name, folder / f"true_form_{effect}.py")
+                record["true_reductions"][effect], record["true_params"][effect] = red, prm
+    elif case.true_form:
+        record["true_reduction"], record["true_params"] = _true_refit(logs, case.true_form, case.true_form_name,
+                                                                      folder / "true_form.py")
+    if case.group == "lookalike":
+        record.update(_lookalike_round(case, folder, logs, fields, d))
     plugins.reset()
     record["seconds"] = round(time.perf_counter() - t0, 1)
     return record
+
+
+def _lookalike_round(case: blind_sim.Case, folder: Path, logs: list, fields: dict, d) -> dict:
+    """Named at once? Declared in a look-alike group? If declared and not named: the designed experiment's log
+    (the case's plant under its ``experiment_excitation.csv``), and the verdict with that log added."""
+    hidden = case.effect
+    out = {"named_at_once": hidden in fields["named_effects"],
+           "declared": any(hidden in g for g in fields["lookalikes"]), "experiment": None, "after": None}
+    if out["named_at_once"] or not out["declared"]:
+        return out
+    summary = d.result.get("experiment")
+    if d.experiment is None:
+        out["experiment"] = {"status": "none designed"}
+        return out
+    where = folder / "experiment"
+    where.mkdir(parents=True, exist_ok=True)
+    written = [Path(p) for p in d.experiment.write(where)]
+    csv = next(p for p in written if p.suffix == ".csv")
+    extra = blind_sim.simulate_experiment(case, csv, where)
+    out["experiment"] = {"status": "simulated", "log": str(extra),
+                         **{k: (summary or {}).get(k) for k in ("members", "kind", "params", "duration_s",
+                                                                 "separation_mm", "floor_mm",
+                                                                 "separation_over_floor")}}
+    again, _ = _diagnose(list(logs) + [extra])
+    out["after"] = {k: again[k] for k in ("named", "named_effects", "lookalikes", "status", "top", "top_reduction")}
+    out["after"]["named_right"] = hidden in again["named_effects"]
+    return out
 
 
 def _worker(args) -> dict:
@@ -106,7 +204,8 @@ def _worker(args) -> dict:
     try:
         return run_case(case, Path(out))
     except Exception as exc:  # one failed case is one failed row, never the whole bench
-        return {"index": case.index, "group": case.group, "effect": case.effect, "error": f"{type(exc).__name__}: {exc}"}
+        return {"index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect,
+                "error": f"{type(exc).__name__}: {exc}"}
 
 
 def summarise(records: list[dict]) -> dict:
@@ -139,6 +238,30 @@ def summarise(records: list[dict]) -> dict:
         d = r["discovered"]
         return d["status"] == "found" and (d["reduction"] or 0.0) >= DETECTABLE and (d["t_stat"] or 0.0) >= 3.0
 
+    multi = [r for r in ok if r["group"] == "multi"]
+    look = [r for r in ok if r["group"] == "lookalike"]
+
+    def all_named(r):  # every hidden library effect named
+        return set(r["hidden_library"]) <= set(r["named_effects"])
+
+    def extra_named(r):  # a library effect named that is not hidden
+        return any(e in blind_sim.LIBRARY and e not in r["effects"] for e in r["named_effects"])
+
+    def wrong_named(r):  # an effect named that is not hidden, the hidden one in no declared group
+        return bool(set(r["named_effects"]) - {r["effect"]}) and not r["declared"]
+
+    def resolved(r):
+        return r["named_at_once"] or (r["declared"] and bool((r.get("after") or {}).get("named_right")))
+
+    def pair_kind(r):
+        return "outside" if any(e in blind_sim.OUTSIDE for e in r["effects"]) else "library"
+
+    by_kind = {}
+    for kind in ("library", "outside"):
+        rows = [r for r in multi if pair_kind(r) == kind]
+        by_kind[kind] = {"cases": len(rows), "all_named": frac(rows, all_named),
+                         "extra_named": sum(1 for r in rows if extra_named(r))}
+
     by_effect = {}
     for r in lib:
         e = by_effect.setdefault(r["effect"], {"cases": 0, "top1": 0, "detectable": 0})
@@ -159,15 +282,22 @@ def summarise(records: list[dict]) -> dict:
         "outside": {"cases": len(out_form), "discovered_ok": frac(out_form, disc_ok),
                     "time_varying": len(out) - len(out_form),
                     "time_varying_named": sum(1 for r in out if r["true_reduction"] is None and r["named"])},
+        "multi": {"cases": len(multi), "all_named": frac(multi, all_named),
+                  "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind},
+        "lookalike": {"cases": len(look), "wrong_named": sum(1 for r in look if wrong_named(r)),
+                      "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
+                      "declared": sum(1 for r in look if r["declared"]),
+                      "experiments": sum(1 for r in look if (r.get("experiment") or {}).get("status") == "simulated")},
         "seconds_per_case": round(float(np.median([r["seconds"] for r in ok])), 1) if ok else None,
     }
 
 
-def _finished(lines: Path, cases: list) -> list[dict]:
-    """The error-free records of an earlier run's ``cases.jsonl`` that match this draw."""
+def _finished(lines: Path, cases: list, groups) -> list[dict]:
+    """The error-free records of an earlier run's ``cases.jsonl`` that match this draw; the records of groups
+    not run now are kept as they are."""
     if not lines.is_file():
         return []
-    drawn = {c.index: c for c in cases}
+    drawn = {(family(c.group), c.index): c for c in cases}
     kept = []
     for n, line in enumerate(lines.read_text().splitlines(), 1):
         if not line.strip():
@@ -177,12 +307,16 @@ def _finished(lines: Path, cases: list) -> list[dict]:
         except json.JSONDecodeError:
             print(f"{lines}:{n}: not a JSON line (a cut write?): diagnosed again", file=sys.stderr)
             continue
-        case = drawn.get(rec.get("index"))
+        if rec.get("group") not in groups:
+            kept.append(rec)  # another group's record: carried over untouched
+            continue
+        case = drawn.get((family(rec.get("group", "")), rec.get("index")))
         same = case is not None and (case.group, case.effect, case.seed) == (
             rec.get("group"), rec.get("effect"), rec.get("seed", case.seed))
         if not same:
             raise SystemExit(f"--resume: {lines}:{n} is case {rec.get('index')} {rec.get('group')} "
-                             f"{rec.get('effect')}, not in this draw (other --cases/--seed?)")
+                             f"{rec.get('effect')}, not in this draw (other --cases/--multi-cases/"
+                             "--lookalike-cases/--seed?)")
         if "error" not in rec:
             kept.append(rec)
     return kept
@@ -194,48 +328,61 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the case draw (default 0)")
     ap.add_argument("--jobs", type=int, default=2, help="cases diagnosed at once (default 2)")
     ap.add_argument("--out", default=str(ROOT / "runs" / "blind"), help="folder for logs and cases.jsonl")
-    ap.add_argument("--only", choices=("library", "none", "outside"),
-                    help="run only the drawn cases of this group (the same cases as in the full draw)")
+    ap.add_argument("--groups", help="comma-separated groups to run, of " + ", ".join(GROUPS)
+                    + " (default library,none,outside)")
+    ap.add_argument("--multi-cases", type=int, default=12, help="cases of the multi group (default 12)")
+    ap.add_argument("--lookalike-cases", type=int, default=12, help="cases of the lookalike group (default 12)")
+    ap.add_argument("--only", choices=BASE_GROUPS,
+                    help="run only the drawn cases of this group (the same cases as in the full draw); "
+                         "the same as --groups GROUP")
     ap.add_argument("--resume", action="store_true",
                     help="keep the finished cases of OUT/cases.jsonl and diagnose only the others")
     ap.add_argument("--summarise", metavar="CASES.jsonl|OUT",
                     help="only print the figures of a (possibly unfinished) run's cases.jsonl")
     ap.add_argument("--write-case", metavar="GROUP[:EFFECT]",
-                    help="only simulate one case (library|none|outside, e.g. outside:rotating_flow) into --out")
+                    help="only simulate one case (library|none|outside|multi|lookalike, e.g. outside:rotating_flow, "
+                         "multi:wall_drag+actuation_lag) into --out")
+    ap.add_argument("--schedule", metavar="CSV",
+                    help="with --write-case: also simulate the experiment log of this t_s,freq_hz schedule")
     args = ap.parse_args(argv)
-    if args.cases < 1 or args.jobs < 1:
-        ap.error("--cases and --jobs must be at least 1")
+    if args.cases < 1 or args.jobs < 1 or args.multi_cases < 1 or args.lookalike_cases < 1:
+        ap.error("--cases, --multi-cases, --lookalike-cases and --jobs must be at least 1")
+    if args.only and args.groups:
+        ap.error("give --groups or --only, not both")
+    groups = [g.strip() for g in (args.groups or args.only or ",".join(BASE_GROUPS)).split(",") if g.strip()]
+    unknown = [g for g in groups if g not in GROUPS]
+    if unknown or not groups:
+        ap.error(f"--groups {args.groups}: unknown group(s) {', '.join(unknown) or '(none given)'}; "
+                 f"of {', '.join(GROUPS)}")
+    if args.schedule and not args.write_case:
+        ap.error("--schedule goes with --write-case")
     if args.summarise:
         path = Path(args.summarise)
         path = path / "cases.jsonl" if path.is_dir() else path
         if not path.is_file():
             ap.error(f"--summarise {args.summarise}: no such file (a bench's --out folder or its cases.jsonl)")
         rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-        print(json.dumps(summarise(sorted(rows, key=lambda r: r["index"])), indent=2))
+        print(json.dumps(summarise(sorted(rows, key=_order)), indent=2))
         return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.write_case:
-        group, _, effect = args.write_case.partition(":")
-        try:
-            case = blind_sim.draw_case(args.seed, group, effect or None)
-        except ValueError as exc:
-            ap.error(f"--write-case {args.write_case}: {exc}")
-        logs = blind_sim.simulate(case, out / "logs")
-        if case.true_form:
-            (out / "true_form.py").write_text(case.true_form)
-        (out / "case.json").write_text(json.dumps({"group": case.group, "effect": case.effect, "law": case.law,
-                                                   "truth": case.truth, "regime": case.regime}, indent=2) + "\n")
-        print(f"wrote {len(logs)} logs to {out / 'logs'} ({case.group} {case.effect or ''} {case.truth})")
-        return 0
-    cases = [c for c in blind_sim.draw_cases(args.cases, args.seed) if args.only in (None, c.group)]
+        return _write_case(ap, args, out)
+    cases = []
+    if set(groups) & set(BASE_GROUPS):
+        cases += [c for c in blind_sim.draw_cases(args.cases, args.seed) if c.group in groups]
+    if "multi" in groups:
+        cases += blind_sim.draw_multi_cases(args.multi_cases, args.seed)
+    if "lookalike" in groups:
+        cases += blind_sim.draw_lookalike_cases(args.lookalike_cases, args.seed)
     lines = out / "cases.jsonl"
-    records = _finished(lines, cases) if args.resume else []
+    records = _finished(lines, cases, groups) if args.resume else []
     lines.write_text("".join(json.dumps(r) + "\n" for r in records))
-    kept = {r["index"] for r in records}
-    todo = [c for c in cases if c.index not in kept]
+    kept = {(family(r["group"]), r["index"]) for r in records}
+    todo = [c for c in cases if (family(c.group), c.index) not in kept]
     if records:
         print(f"resuming: {len(records)} finished cases kept, {len(todo)} to go", file=sys.stderr, flush=True)
+    total = len(records) + len(todo)
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         futures = [pool.submit(_worker, (c, str(out))) for c in todo]
         for done, fut in enumerate(as_completed(futures), len(records) + 1):
@@ -243,11 +390,58 @@ def main(argv=None) -> int:
             records.append(rec)
             with open(lines, "a") as fh:
                 fh.write(json.dumps(rec) + "\n")
-            what = rec.get("error") or f"top {rec['top']} ({rec['top_reduction']:+.0%}), true {rec['true_reduction']}"
-            print(f"[{done}/{len(cases)}] case {rec['index']} {rec['group']} {rec['effect']}: {what}",
+            print(f"[{done}/{total}] case {rec['index']} {rec['group']} {rec['effect']}: {_progress(rec)}",
                   file=sys.stderr, flush=True)
-    records.sort(key=lambda r: r["index"])
+    records.sort(key=_order)
     print(json.dumps(summarise(records), indent=2))
+    return 0
+
+
+def _order(rec: dict):
+    """Records sorted by draw (base, multi, lookalike), then index."""
+    return (("base", "multi", "lookalike").index(family(rec.get("group", ""))), rec["index"])
+
+
+def _progress(rec: dict) -> str:
+    """One line on a finished case for stderr."""
+    if "error" in rec:
+        return rec["error"]
+    if rec["group"] == "multi":
+        return f"named {rec['named_effects']}, true {rec['true_reductions']}"
+    if rec["group"] == "lookalike":
+        after = rec.get("after") or {}
+        return (f"named {rec['named_effects']}, look-alikes {rec['lookalikes']}"
+                + (f"; after the experiment named {after.get('named_effects')}" if after else "")
+                + f", true {rec['true_reduction']}")
+    return f"top {rec['top']} ({rec['top_reduction']:+.0%}), true {rec['true_reduction']}"
+
+
+def _write_case(ap, args, out: Path) -> int:
+    """--write-case: one case's logs, true form(s) and truth into ``out`` (and an experiment's log)."""
+    group, _, effect = args.write_case.partition(":")
+    try:
+        if group == "multi":
+            case = blind_sim.draw_multi_case(args.seed, effect.split("+") if effect else None)
+        elif group == "lookalike":
+            case = blind_sim.draw_lookalike_case(args.seed, effect or None)
+        else:
+            case = blind_sim.draw_case(args.seed, group, effect or None)
+    except ValueError as exc:
+        ap.error(f"--write-case {args.write_case}: {exc}")
+    logs = blind_sim.simulate(case, out / "logs")
+    for e, source in zip(case.effects, case.true_forms):
+        if source:
+            (out / ("true_form.py" if len(case.effects) == 1 else f"true_form_{e}.py")).write_text(source)
+    (out / "case.json").write_text(json.dumps({"group": case.group, "effect": case.effect, "law": case.law,
+                                               "truth": case.truth, "regime": case.regime, "effects": case.effects,
+                                               "laws": case.laws, "truths": case.truths}, indent=2) + "\n")
+    print(f"wrote {len(logs)} logs to {out / 'logs'} ({case.group} {case.effect or ''} {case.truth})")
+    if args.schedule:
+        try:
+            extra = blind_sim.simulate_experiment(case, args.schedule, out / "experiment")
+        except (OSError, ValueError) as exc:
+            ap.error(f"--schedule {args.schedule}: {exc}")
+        print(f"wrote the experiment's log {extra}")
     return 0
 
 

@@ -1,4 +1,4 @@
-"""Blind bench simulator: an independent swimmer plant, closed loop and camera, with one hidden effect.
+"""Blind bench simulator: an independent swimmer plant, closed loop and camera, with hidden effects.
 
 It judges ``cosim diagnose`` on logs from code that shares nothing with it:
 only numpy and the standard library are imported (the word ``cosim`` below
@@ -31,13 +31,25 @@ in the case's band; command noise (part of the logged command). Camera: one
 noisy position per period, lost detections, reflections.
 
 Hidden effects: nine from the project's library (:data:`LIBRARY`), four
-outside it (:data:`OUTSIDE`), or none. Each case carries the source of an
+outside it (:data:`OUTSIDE`), or none (:func:`draw_cases`); two at once
+(:func:`draw_multi_cases`: two library effects, or one library and one
+outside); or one of the look-alike family (:data:`LOOKALIKE`) in regimes
+where its members mimic each other (:func:`draw_lookalike_cases`). A case
+holds at most one thrust-shaping effect (:data:`THRUST_SHAPING`) and at most
+one water flow (:data:`FLOWS`); every drag acts on the velocity relative to
+the water. Each hidden effect with a true form carries the source of an
 effect file (the project's plugin contract) registering ``true_<effect>``:
 the simulator's law with its parameters free and initialised at the truth.
 The functions of the "Laws" section are copied verbatim into those files.
 
     cases = draw_cases(60, seed=1)
     files = simulate(cases[0], "out/case_00")   # out/case_00/log_00.csv, ...
+    extra = simulate_experiment(cases[0], "experiment_excitation.csv", "out/case_00/experiment")
+
+Random streams: ``draw_cases`` [seed, 0], ``draw_multi_cases`` [seed, 3],
+``draw_lookalike_cases`` [seed, 5]; per case: its draw [case seed, 1], the
+look-alike regime [case seed, 6], its logs [case seed, 2], an experiment's
+log [case seed, 4].
 """
 
 from __future__ import annotations
@@ -63,6 +75,11 @@ GRADIENT_PHASES = 6  # quadrature points over half a turn of the field
 LIBRARY = ("background_flow", "wall_drag", "step_out", "gradient_force", "anisotropic_drag",
            "quadratic_drag", "actuation_lag", "heading_lag", "sensor_latency")
 OUTSIDE = ("rotating_flow", "thrust_nonuniform", "shear_flow", "periodic")
+THRUST_SHAPING = ("actuation_lag", "heading_lag", "step_out")  # at most one of these per case
+FLOWS = ("background_flow", "rotating_flow", "shear_flow")  # at most one of these per case
+LOOKALIKE = ("actuation_lag", "sensor_latency", "heading_lag")  # mimic each other when the spin rate varies slowly
+LOOKALIKE_QUADRATIC_EVERY = 7  # draw_lookalike_cases: one case in this many hides a quadratic drag instead
+EXPERIMENT_RADIUS_MM = 25.0  # simulate_experiment's circle
 WALL_LAWS = ("1/d", "exp", "1/d^2")
 PATH_KINDS = ("circle", "racetrack", "helix", "figure8")
 HEADER = "t_ms,omega_x,omega_y,omega_z,p_x,p_y,p_z"
@@ -70,17 +87,59 @@ HEADER = "t_ms,omega_x,omega_y,omega_z,p_x,p_y,p_z"
 
 @dataclass
 class Case:
-    """One bench case; every field is JSON-able (see :func:`draw_case` for the keys of truth and regime)."""
+    """One bench case; every field is JSON-able (see :func:`draw_case` for the keys of truth and regime).
+
+    The hidden effects are ``effects`` with ``laws``, ``truths``, ``true_forms`` and ``true_form_names``
+    aligned to them (empty lists for "none"). With one hidden effect (or none) ``effect``, ``law``, ``truth``,
+    ``true_form`` and ``true_form_name`` are that effect's; with several, ``effect`` is their names joined by
+    "+", ``law`` is "", ``truth`` is {effect: truth} and ``true_form`` / ``true_form_name`` are None.
+    """
 
     index: int
     seed: int
-    group: str  # "library" | "none" | "outside"
-    effect: str | None  # library name, outside name or None
+    group: str  # "library" | "none" | "outside" | "multi" | "lookalike"
+    effect: str | None  # library name, outside name, None, or "a+b" (several)
     law: str  # "1/d" | "exp" | "1/d^2" (wall drag), "inside" | "top" (step-out), else ""
     truth: dict  # the effect's drawn parameters, human units
     regime: dict  # plant, camera, band, controller, logs and paths
     true_form: str | None  # effect-file source registering true_<effect>; None for "none" and "periodic"
     true_form_name: str | None
+    effects: list | None = None  # every hidden effect (filled from ``effect`` when None)
+    laws: list | None = None
+    truths: list | None = None
+    true_forms: list | None = None  # per effect: effect-file source or None
+    true_form_names: list | None = None
+
+    def __post_init__(self):
+        if self.effects is None:  # one effect or none, given the single way
+            one = self.effect is not None
+            self.effects = [self.effect] if one else []
+            self.laws = [self.law] if one else []
+            self.truths = [self.truth] if one else []
+            self.true_forms = [self.true_form] if one else []
+            self.true_form_names = [self.true_form_name] if one else []
+        sizes = {len(x) for x in (self.effects, self.laws, self.truths, self.true_forms, self.true_form_names)}
+        if len(sizes) != 1:
+            raise ValueError(f"case {self.index}: effects, laws, truths, true_forms and true_form_names differ "
+                             "in length")
+        check_compatible(self.effects)
+
+    def hidden(self, effect: str):
+        """(law, truth) of a hidden effect; KeyError when it is not hidden."""
+        return dict(zip(self.effects, zip(self.laws, self.truths)))[effect]
+
+
+def check_compatible(effects) -> None:
+    """ValueError unless the effects are known, distinct, with at most one thrust-shaping effect and one flow."""
+    unknown = [e for e in effects if e not in LIBRARY + OUTSIDE]
+    if unknown:
+        raise ValueError(f"unknown effect(s) {', '.join(map(str, unknown))}; known: {', '.join(LIBRARY + OUTSIDE)}")
+    if len(set(effects)) != len(effects):
+        raise ValueError(f"effects {'+'.join(effects)}: an effect hidden twice")
+    for family, what in ((THRUST_SHAPING, "thrust-shaping effect"), (FLOWS, "flow")):
+        both = [e for e in effects if e in family]
+        if len(both) > 1:
+            raise ValueError(f"effects {'+'.join(effects)}: at most one {what} ({', '.join(family)}) per case")
 
 
 # ====================================================================== laws
@@ -298,13 +357,111 @@ def draw_case(seed: int, group: str, effect: str | None = None, index: int = 0, 
     effect = str(rng.choice(names)) if effect is None and group != "none" else effect
     if effect not in names:
         raise ValueError(f"effect {effect!r} is not in group {group!r}")
+    return _build(rng, seed, group, [effect] if effect is not None else [], index, overrides)
+
+
+def _build(rng, seed: int, group: str, effects: list, index: int, overrides: dict) -> Case:
+    """The case hiding ``effects``: its regime, then each effect's law and truth (a gradient force first: it
+    may raise the band the others scale with), all from ``rng``; ``overrides`` as in :func:`draw_case`."""
+    check_compatible(effects)
     pick = _Pick(overrides)
     regime = _draw_regime(rng, pick)
-    law, truth = _draw_truth(rng, pick, effect, regime)
+    drawn = {e: _draw_truth(rng, pick, e, regime) for e in sorted(effects, key=lambda e: e != "gradient_force")}
     if pick.left:
         raise TypeError(f"unknown override(s): {', '.join(sorted(pick.left))}")
-    form = _true_form(effect, law, truth, index, seed)
-    return Case(index, int(seed), group, effect, law, truth, regime, form, f"true_{effect}" if form else None)
+    laws, truths = [drawn[e][0] for e in effects], [drawn[e][1] for e in effects]
+    forms = [_true_form(e, law, t, index, seed) for e, law, t in zip(effects, laws, truths)]
+    names = [f"true_{e}" if f else None for e, f in zip(effects, forms)]
+    if len(effects) == 1:
+        return Case(index, int(seed), group, effects[0], laws[0], truths[0], regime, forms[0], names[0])
+    if not effects:
+        return Case(index, int(seed), group, None, "", {}, regime, None, None)
+    return Case(index, int(seed), group, "+".join(effects), "", dict(zip(effects, truths)), regime, None, None,
+                effects=list(effects), laws=laws, truths=truths, true_forms=forms, true_form_names=names)
+
+
+def compatible_pairs(kind: str) -> list[tuple[str, str]]:
+    """The effect pairs :func:`draw_multi_cases` hides: "library" (two library effects) or "outside" (a library
+    effect and an outside one, not "periodic"), at most one thrust-shaping effect and one flow each."""
+    if kind == "library":
+        pairs = [(a, b) for i, a in enumerate(LIBRARY) for b in LIBRARY[i + 1:]]
+    elif kind == "outside":
+        pairs = [(a, b) for a in LIBRARY for b in OUTSIDE if b != "periodic"]
+    else:
+        raise ValueError(f"pair kind {kind!r}: 'library' or 'outside'")
+    ok = []
+    for pair in pairs:
+        try:
+            check_compatible(pair)
+        except ValueError:
+            continue
+        ok.append(pair)
+    return ok
+
+
+def draw_multi_case(seed: int, effects=None, index: int = 0, **overrides) -> Case:
+    """One case of group "multi" hiding two effects (a random compatible pair when ``effects`` is None: two
+    library effects or, one time in three, a library and an outside one), drawn like :func:`draw_case`."""
+    rng = np.random.default_rng([seed, 1])
+    if effects is None:
+        pairs = compatible_pairs("outside" if rng.random() < 1 / 3 else "library")
+        effects = pairs[int(rng.integers(len(pairs)))]
+    effects = list(effects)
+    if len(effects) < 2:
+        raise ValueError(f"a multi case hides at least two effects, not {'+'.join(effects) or 'none'}")
+    if "periodic" in effects:
+        raise ValueError("a multi case does not hide 'periodic' (it has no true form)")
+    return _build(rng, seed, "multi", effects, index, overrides)
+
+
+def draw_multi_cases(n: int, seed: int) -> list[Case]:
+    """n cases of two hidden effects each: two library effects in two cases of three, a library and an outside
+    one (not "periodic") in the third; the pairs cycle through shuffled lists of the compatible pairs
+    (:func:`compatible_pairs`). Own stream [seed, 3]: :func:`draw_cases` is unchanged."""
+    rng = np.random.default_rng([seed, 3])
+    lib, out = compatible_pairs("library"), compatible_pairs("outside")
+    lib, out = [lib[i] for i in rng.permutation(len(lib))], [out[i] for i in rng.permutation(len(out))]
+    plan = [lib[(i - i // 3) % len(lib)] if i % 3 != 2 else out[(i // 3) % len(out)] for i in range(n)]
+    order, seeds = rng.permutation(n), rng.integers(0, 2**31 - 1, n)
+    return [draw_multi_case(int(seeds[i]), plan[j], index=i) for i, j in enumerate(order)]
+
+
+def draw_lookalike_case(seed: int, effect: str | None = None, index: int = 0, **overrides) -> Case:
+    """One case of group "lookalike": one hidden effect of :data:`LOOKALIKE` (or "quadratic_drag") at a magnitude
+    drawn over a wide range, in a regime where the family mimic each other.
+
+    Lags (actuation, heading): tau 0.1-0.5 s (log-uniform); camera latency 2-12 control periods (log-uniform).
+    Their regime: the spin rate held 2-5 s up to 3-10 s at a time, command noise 0-0.2 Hz. A quadratic drag:
+    the spin rate within a band 0.5-2 Hz wide (logs at about one speed, where it mimics a slower velocity
+    response), held as long. These are drawn from stream [seed, 6] and passed to :func:`draw_case`'s
+    machinery as overrides (``overrides`` given here win).
+    """
+    rng = np.random.default_rng([seed, 6])
+    names = LOOKALIKE + ("quadratic_drag",)
+    drawn = int(rng.integers(len(LOOKALIKE)))
+    effect = LOOKALIKE[drawn] if effect is None else effect
+    if effect not in names:
+        raise ValueError(f"effect {effect!r} is not a look-alike case's; one of {', '.join(names)}")
+    hold_lo = _u(rng, 2.0, 5.0)
+    regime = {"hold_s": [hold_lo, hold_lo + _u(rng, 1.0, 5.0)], "cmd_noise_hz": _u(rng, 0.0, 0.2)}
+    tau, delay, f_lo, width = _lu(rng, 0.1, 0.5), _lu(rng, 2.0, 12.0), _u(rng, 2.0, 15.0), _u(rng, 0.5, 2.0)
+    if effect in ("actuation_lag", "heading_lag"):
+        regime["tau_s"] = tau
+    elif effect == "sensor_latency":
+        regime["delay_periods"] = delay
+    else:
+        regime["band_hz"] = [f_lo, f_lo + width]
+    return _build(np.random.default_rng([seed, 1]), seed, "lookalike", [effect], index, regime | overrides)
+
+
+def draw_lookalike_cases(n: int, seed: int) -> list[Case]:
+    """n look-alike cases (:func:`draw_lookalike_case`): one in :data:`LOOKALIKE_QUADRATIC_EVERY` hides a
+    quadratic drag, the others cycle through :data:`LOOKALIKE`; shuffled. Own stream [seed, 5]."""
+    rng = np.random.default_rng([seed, 5])
+    n_quad = n // LOOKALIKE_QUADRATIC_EVERY
+    plan = ["quadratic_drag"] * n_quad + [LOOKALIKE[i % len(LOOKALIKE)] for i in range(n - n_quad)]
+    order, seeds = rng.permutation(n), rng.integers(0, 2**31 - 1, n)
+    return [draw_lookalike_case(int(seeds[i]), plan[j], index=i) for i, j in enumerate(order)]
 
 
 def _draw_regime(rng, pick) -> dict:
@@ -495,26 +652,32 @@ def _draw_truth(rng, pick, effect, reg) -> tuple[str, dict]:
 class _Plant:
     """The continuous-time plant of one case for all its L logs at once, advanced one control period at a time.
 
-    ``state`` holds the effect's own state: the field's rotation vector [Hz] (actuation lag, (L, 3)), the body
-    axis (heading lag, (L, 3)) or the magnet's lag phase phi as (sin(phi/2), cos(phi/2)) (step-out, (L, 2)).
+    ``hidden`` maps each hidden effect to its truth (at most one thrust-shaping effect and one flow: see
+    :func:`check_compatible`); forces add up and every drag acts on the velocity relative to the water.
+    ``state`` holds the thrust-shaping effect's own state: the field's rotation vector [Hz] (actuation lag,
+    (L, 3)), the body axis (heading lag, (L, 3)) or the magnet's lag phase phi as (sin(phi/2), cos(phi/2))
+    (step-out, (L, 2)); None before the first period.
     """
 
     def __init__(self, case: Case):
-        pl, dt, t = case.regime["plant"], case.regime["dt_s"], case.truth
-        self.effect, self.law, self.truth = case.effect, case.law, t
+        pl, dt = case.regime["plant"], case.regime["dt_s"]
+        check_compatible(case.effects)
+        self.hidden = dict(zip(case.effects, case.truths))
+        self.wall_law = dict(zip(case.effects, case.laws)).get("wall_drag", "")
         # the plant's coefficients as accelerations: [mm/s^2 / Hz], [1/s], [mm/s^2]
         self.k, self.cd0, self.cd1, self.cl0, self.fvs, self.fmax = (ACC * pl[n] for n in ("k", "Cd0", "Cd1", "Cl0",
                                                                                               "Fvs", "Fmax"))
-        self.uses_p = self.effect in ("rotating_flow", "shear_flow", "wall_drag", "thrust_nonuniform")
+        self.uses_p = bool(set(self.hidden) & {"rotating_flow", "shear_flow", "wall_drag", "thrust_nonuniform"})
         self.m = max(1, round(dt / SUBSTEP_S))
         self.dt, self.h = dt, dt / self.m
         self.tj = np.arange(self.m + 1) * self.h  # substep boundaries within a period [s]
         self.state, self.guess, self.passes = None, None, []
         self._guess_rate(self.cd1)
-        if self.effect == "background_flow":
+        if "background_flow" in self.hidden:
+            t = self.hidden["background_flow"]
             self.flow = np.array([t["w_x_mm_s"], t["w_y_mm_s"], 0.0])
-        elif self.effect == "periodic":
-            a = math.radians(t["dir_deg"])
+        if "periodic" in self.hidden:
+            a = math.radians(self.hidden["periodic"]["dir_deg"])
             self.pdir = np.array([math.cos(a), math.sin(a), 0.0])
 
     def period(self, p, v, u, t0):
@@ -549,20 +712,23 @@ class _Plant:
 
     def _drive(self, u, p, v, t0):
         """Thrust and unit spin/body axis per substep ((M or 1), L, 3), and the held forces, all / m [mm/s^2]."""
-        e, t, k = self.effect, self.truth, self.k
-        uh = unit(u)
+        hid, k = self.hidden, self.k
+        uh = field_axis = unit(u)  # the field's rotation axis: the command's, unless the field lags it
         thrust, axis = (k * u)[None], uh[None]
         mid = p + (0.5 * self.dt) * v  # predicted mid-period position
         r = np.sqrt((mid * mid).sum(1, keepdims=True))
         held = mid * (np.sin(r * (np.pi / PB_NORM_MM)) * (-self.fmax) / np.maximum(r, 1e-12))  # Eq. 6
         held[:, 2] += self.fvs
-        if e == "actuation_lag":  # omega_eff' = (u - omega_eff) / tau: exact means over the substeps
+        if "actuation_lag" in hid:  # omega_eff' = (u - omega_eff) / tau: exact means over the substeps
+            t = hid["actuation_lag"]
             y0 = u if self.state is None else self.state
             decay = np.exp(-self.tj / t["tau_s"])
             mean = u + (y0 - u) * ((t["tau_s"] / self.h) * (decay[:-1] - decay[1:]))[:, None, None]
             self.state = u + (y0 - u) * decay[-1]
             thrust, axis = k * mean, unit(mean)
-        elif e == "heading_lag":  # tan(theta / 2) decays as exp(-t / tau) in the plane (b, u_hat); see heading_mean
+            field_axis = unit(mean.mean(axis=0))
+        if "heading_lag" in hid:  # tan(theta / 2) decays as exp(-t / tau) in the plane (b, u_hat); see heading_mean
+            t = hid["heading_lag"]
             b = uh if self.state is None else self.state
             c = np.clip((b * uh).sum(1), -1.0, 1.0)
             q = b - c[:, None] * uh
@@ -581,16 +747,19 @@ class _Plant:
             thrust, axis = k * np.sqrt((u * u).sum(1, keepdims=True)) * mean, unit(mean)
             s1 = s[-1][:, None]
             self.state = ((1.0 - s1 * s1) * uh + 2.0 * s1 * perp) / (1.0 + s1 * s1)
-        elif e == "step_out":  # Adler phase equation, solved exactly (see _adler)
+        if "step_out" in hid:  # Adler phase equation, solved exactly (see _adler)
+            t = hid["step_out"]
             f = np.sqrt((u * u).sum(1))
             if self.state is None:  # locked at rest (or at phase 0 when slipping)
                 half = 0.5 * np.arcsin(np.minimum(f / t["f_so_hz"], 1.0))
                 self.state = np.stack([np.sin(half), np.cos(half)], axis=1)
             spin, self.state = _adler(f, t["f_so_hz"], self.state, self.tj)
             thrust = k * spin[..., None] * uh
-        elif e == "gradient_force":
-            held = held + ACC * gradient_force(mid, uh, t["b_uN_mm"], t["mB_uNmm"])
-        elif e == "periodic":  # exact mean of F0 sin(2 pi f t + phase) over each substep
+        if "gradient_force" in hid:
+            t = hid["gradient_force"]
+            held = held + ACC * gradient_force(mid, field_axis, t["b_uN_mm"], t["mB_uNmm"])
+        if "periodic" in hid:  # exact mean of F0 sin(2 pi f t + phase) over each substep
+            t = hid["periodic"]
             om = 2 * np.pi * t["f_hz"]
             ph = om * (t0 + self.tj) + t["phase_rad"]
             mean_sin = (np.cos(ph[:-1]) - np.cos(ph[1:])) / (om * self.h)
@@ -600,29 +769,32 @@ class _Plant:
     def _rates(self, pm, vm, thrust, axis, held):
         """Drag rate lambda (M, L) [1/s] and the other acceleration (M, L, 3) [mm/s^2] at the substeps' midpoints.
 
-        pm, vm: midpoint positions (None unless the effect needs them) and velocities (M, L, 3).
+        pm, vm: midpoint positions (None unless an effect needs them) and velocities (M, L, 3).
         """
-        e, t = self.effect, self.truth
+        hid = self.hidden
         w = None
-        if e == "background_flow":
+        if "background_flow" in hid:
             w = self.flow
-        elif e == "rotating_flow":
+        elif "rotating_flow" in hid:
+            t = hid["rotating_flow"]
             w = rotating_flow(pm, t["x0_mm"], t["y0_mm"], t["omega_rad_s"])
-        elif e == "shear_flow":
+        elif "shear_flow" in hid:
+            t = hid["shear_flow"]
             w = shear_flow(pm, t["gamma_x_per_s"], t["gamma_y_per_s"])
         vr = vm if w is None else vm - w
         lam, acc = hydro_terms(vr, axis, self.cd0, self.cd1, self.cl0)  # coefficients / m: lambda, lift / m
         acc = acc + thrust + held
-        if w is not None:  # drag on v - w: -lambda v (implicit) + lambda w
+        if "wall_drag" in hid:
+            t = hid["wall_drag"]
+            lam = lam + (ACC * t["c_uNs_mm"]) * wall_gain(wall_distance(pm), self.wall_law, t["ell_mm"])
+        if "quadratic_drag" in hid:
+            lam = lam + (ACC * hid["quadratic_drag"]["c_uNs2_mm2"]) * np.sqrt((vr * vr).sum(-1))
+        if w is not None:  # every drag on v - w: -lambda v (implicit) + lambda w
             acc = acc + lam[..., None] * w
-        elif e == "wall_drag":
-            lam = lam + (ACC * t["c_uNs_mm"]) * wall_gain(wall_distance(pm), self.law, t["ell_mm"])
-        elif e == "quadratic_drag":
-            lam = lam + (ACC * t["c_uNs2_mm2"]) * np.sqrt((vr * vr).sum(-1))
-        elif e == "anisotropic_drag":  # on the velocity across the body axis
-            acc = acc - (ACC * t["c_uNs_mm"]) * (vr - (vr * axis).sum(-1, keepdims=True) * axis)
-        elif e == "thrust_nonuniform":  # k (1 + g . p) omega
-            acc = acc + (pm @ np.asarray(t["g_per_mm"]))[..., None] * thrust
+        if "anisotropic_drag" in hid:  # on the velocity across the body axis
+            acc = acc - (ACC * hid["anisotropic_drag"]["c_uNs_mm"]) * (vr - (vr * axis).sum(-1, keepdims=True) * axis)
+        if "thrust_nonuniform" in hid:  # k (1 + g . p) omega
+            acc = acc + (pm @ np.asarray(hid["thrust_nonuniform"]["g_per_mm"]))[..., None] * thrust
         return lam, acc
 
     def _solve(self, p0, v0, lam, acc):
@@ -688,6 +860,14 @@ def run_case(case: Case) -> dict:
     rows = [int(round(d / dt)) for d in reg["log_durations_s"]]
     n_logs, n = len(rows), max(rows)
     freq = np.stack([_schedule(rng, n, dt, reg["band_hz"], reg["hold_s"]) for _ in range(n_logs)], axis=1)[..., None]
+    return _closed_loop(case, rng, freq, [path_points(d) for d in reg["paths"]], rows)
+
+
+def _closed_loop(case: Case, rng, freq: np.ndarray, paths: list, rows: list) -> dict:
+    """Run the closed loop of :func:`run_case` on L logs: spin rate ``freq`` (n, L, 1) [Hz], ``paths`` [(N, 3) mm]
+    (L of them), ``rows`` (L,); the command noise and camera errors come from ``rng`` in this order."""
+    reg, dt = case.regime, case.regime["dt_s"]
+    n_logs, n = len(rows), max(rows)
     u_noise = rng.normal(0.0, reg["cmd_noise_hz"], (n, n_logs, 3))
     cam = rng.normal(size=(n, n_logs, 3)) * (reg["noise_mm"] * np.asarray(reg["noise_axis"]))
     lost = rng.random((n, n_logs)) < reg["lost_rate"]
@@ -697,10 +877,9 @@ def run_case(case: Case) -> dict:
 
     plant = _Plant(case)
     m = plant.m
-    lag = case.truth["delay_periods"] * m if case.effect == "sensor_latency" else None  # [substeps]
-    hist = np.empty((n * m + 1, n_logs, 3)) if lag is not None else None
+    lag = case.hidden("sensor_latency")[1]["delay_periods"] * m if "sensor_latency" in case.effects else None
+    hist = np.empty((n * m + 1, n_logs, 3)) if lag is not None else None  # lag [substeps]
     # pure pursuit: the nearest path point from 10 mm behind to 30 mm ahead of the last one; target `ahead` further
-    paths = [path_points(d) for d in reg["paths"]]
     npts = np.array([len(x) for x in paths])
     back, fwd, ahead = round(10 / PATH_DS_MM), round(30 / PATH_DS_MM), round(reg["lookahead_mm"] / PATH_DS_MM)
     ext = np.stack([x[(np.arange(npts.max() + back + max(fwd, ahead) + 1) - back) % len(x)] for x in paths])
@@ -750,6 +929,65 @@ def simulate(case: Case, out_dir) -> list[Path]:
         write_log(files[-1], res["t_s"][:nrow] * 1000.0, 2 * np.pi * res["omega_hz"][:nrow, i],
                   res["p_meas_mm"][:nrow, i] / 1000.0)
     return files
+
+
+def read_schedule(path) -> tuple[np.ndarray, np.ndarray]:
+    """(t_s (k,), freq_hz (k,)) of a spin-rate schedule CSV with header ``t_s,freq_hz`` (times increasing from
+    >= 0 s, rates >= 0 Hz); ValueError naming the file and the problem otherwise."""
+    path = Path(path)
+    lines = [x.strip() for x in path.read_text().splitlines() if x.strip()]
+    if not lines or [c.strip() for c in lines[0].split(",")] != ["t_s", "freq_hz"]:
+        raise ValueError(f"{path}: the first line must be the header 't_s,freq_hz'")
+    try:
+        table = np.array([[float(c) for c in x.split(",")] for x in lines[1:]], dtype=float).reshape(-1, 2)
+    except ValueError as exc:
+        raise ValueError(f"{path}: every row must be two numbers t_s,freq_hz ({exc})") from None
+    t, f = table[:, 0], table[:, 1]
+    if len(t) == 0:
+        raise ValueError(f"{path}: no rows after the header")
+    if not (np.all(np.isfinite(table)) and t[0] >= 0 and np.all(np.diff(t) > 0) and np.all(f >= 0)):
+        raise ValueError(f"{path}: times must increase from >= 0 s and rates be finite and >= 0 Hz")
+    return t, f
+
+
+def experiment_path(case: Case, rng) -> dict:
+    """A horizontal circle of radius :data:`EXPERIMENT_RADIUS_MM` about the centre of the case's paths (kept
+    within the paths' limits), random orientation, direction and start from ``rng`` (a path description)."""
+    pts = np.concatenate([path_points(d, ds=2.0) for d in case.regime["paths"]])
+    centre = pts.mean(axis=0)
+    room = np.array([PATH_LIMIT_MM - EXPERIMENT_RADIUS_MM] * 2 + [PATH_LIMIT_MM])
+    centre = np.clip(centre, -room, room)
+    return {"kind": "circle", "radius_mm": EXPERIMENT_RADIUS_MM, "yaw_deg": _u(rng, 0, 360), "tilt_deg": 0.0,
+            "tilt_axis_deg": 0.0, "direction": int(rng.choice([-1, 1])), "start": _u(rng, 0, 1),
+            "near_wall": False, "offset_mm": centre.tolist()}
+
+
+def simulate_experiment(case: Case, schedule_csv, out_dir, path: int | None = None,
+                        name: str = "log_experiment.csv") -> Path:
+    """One more log of the case's plant (same hidden effects and camera regime, fresh stream [case seed, 4])
+    with the spin rate of ``schedule_csv`` (``t_s,freq_hz``, each rate held from its row's time to the next;
+    before the first row, the first rate). Its length is the schedule's: the last row's time plus the spacing
+    before it (one control period for a single row), in control periods of the case. The direction comes
+    from the simulator's pure pursuit on the case's path ``path`` (an index into ``regime["paths"]``) or, by
+    default, on a new circle (:func:`experiment_path`). Writes and returns ``out_dir/name``.
+    """
+    rng = np.random.default_rng([case.seed, 4])
+    t, f = read_schedule(schedule_csv)
+    dt = case.regime["dt_s"]
+    end = t[-1] + (t[-1] - t[-2] if len(t) > 1 else dt)
+    n = max(2, int(round(end / dt)))
+    rate = f[np.maximum(np.searchsorted(t, np.arange(n) * dt + 1e-6, side="right") - 1, 0)]  # 1 us: CSV rounding
+    if path is None:
+        desc = experiment_path(case, rng)
+    elif 0 <= path < len(case.regime["paths"]):
+        desc = case.regime["paths"][path]
+    else:
+        raise ValueError(f"path {path}: the case has paths 0-{len(case.regime['paths']) - 1}")
+    res = _closed_loop(case, rng, rate[:, None, None], [path_points(desc)], [n])
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_log(out / name, res["t_s"] * 1000.0, 2 * np.pi * res["omega_hz"][:, 0], res["p_meas_mm"][:, 0] / 1000.0)
+    return out / name
 
 
 def write_log(path, t_ms, omega_rad_s, p_m) -> None:
