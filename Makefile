@@ -3,13 +3,11 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-FMU := build/swimmer_plant.fmu
-FMU_SOURCES := $(wildcard fmus/swimmer_plant/*.c fmus/swimmer_plant/*.h fmus/swimmer_plant/*.xml)
 
 .PHONY: demo example test fmu venv clean
 
-demo: $(STAMP) $(FMU)
-	$(VENV)/bin/cosim run scenarios/racetrack.yaml --out runs/demo
+demo: $(STAMP) fmu
+	$(VENV)/bin/cosim run racetrack --out runs/demo
 
 # A second system on the framework: the DC motor FMU (pythonfmu; built once per source, cached
 # in examples/dc_motor/build/) under PI speed control.
@@ -17,10 +15,13 @@ example: $(STAMP)
 	$(PY) examples/dc_motor/build.py
 	$(VENV)/bin/cosim run examples/dc_motor/scenario.yaml --out runs/dc_motor
 
-test: $(STAMP) $(FMU)
+test: $(STAMP) fmu
 	$(PY) -m pytest -n auto --dist loadscope
 
-fmu: $(FMU)
+# The plant FMU, built from the package's C sources into ~/.cache/cosim-swimmer/fmu on first use
+# (a run builds it too); prints its path. COSIM_FMU=FILE runs a prebuilt one instead.
+fmu: $(STAMP)
+	@$(PY) -m cosim_plugins.plant.build
 
 venv: $(STAMP)
 
@@ -31,9 +32,6 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q torch==2.13.0
 	$(PY) -m pip install -q -e '.[test,lab,cluster]'
 	touch $@
-
-$(FMU): $(STAMP) $(FMU_SOURCES)
-	$(PY) -m cosim_plugins.plant.build --out $@
 
 clean:
 	rm -rf build runs cache

@@ -17,9 +17,10 @@ import json
 import tempfile
 import time
 from pathlib import Path
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
+SCENARIO = SCENARIOS_DIR / "diagnose" / "plain.yaml"
 BUDGET_S = 60.0
 N_LOGS = 5
 HIDDEN = ["components.plant.params.background_flow_on=true", "components.plant.params.flow_x=0.003"]

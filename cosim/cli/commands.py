@@ -1,4 +1,4 @@
-"""The framework's commands: run, validate, schema, plugins, replay, node, certs."""
+"""The framework's commands: run, validate, scenarios, schema, plugins, replay, node, certs."""
 
 from __future__ import annotations
 
@@ -12,11 +12,15 @@ import textwrap
 from pathlib import Path
 
 from cosim.contract.errors import UserError
+from cosim.scenario.catalog import resolve_scenario
+
+
+SCENARIO_HELP = "a scenario YAML file, or the name of a shipped one (see `cosim scenarios`), e.g. racetrack"
 
 
 def add_commands(sub) -> None:
     p = sub.add_parser("run", help="run a scenario (or its sweep) and record it")
-    p.add_argument("scenario", type=Path, help="scenario YAML file")
+    p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario field by dotted path, e.g. components.camera.params.interval_s=0.1")
@@ -41,9 +45,12 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("validate", help="check a scenario and print its wiring as a table")
-    p.add_argument("scenario", type=Path)
+    p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("scenarios", help="list the scenarios the installed packages ship, to run by name")
+    p.set_defaults(func=cmd_scenarios)
 
     p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
     p.set_defaults(func=cmd_schema)
@@ -61,7 +68,7 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
     p.add_argument("component", help="component name in the scenario")
-    p.add_argument("scenario", type=Path)
+    p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--run-id", required=True)
     p.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
                    help="zenoh endpoint of the scheduler, e.g. tcp/127.0.0.1:7447, and (repeated) of "
@@ -91,6 +98,7 @@ def cmd_run(args) -> int:
     from cosim.runtime.runner import RunRequest, run
     from cosim.scenario.schema import load_scenario
 
+    args.scenario = resolve_scenario(args.scenario)
     out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
     if args.realtime is not None and not args.realtime > 0:
         raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
@@ -157,13 +165,32 @@ def cmd_validate(args) -> int:
     from cosim.scenario.schema import load_scenario
     from cosim.runtime.wiring import build_wiring, connection_table
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = load_scenario(resolve_scenario(args.scenario), args.overrides)
     print(connection_table(scenario, build_wiring(scenario)))
     if scenario.sweep:
         from cosim.scenario.schema import sweep_overrides
 
         print(f"sweep: {len(sweep_overrides(scenario))} runs over {', '.join(scenario.sweep)}")
     return 0
+
+
+def cmd_scenarios(args) -> int:
+    from cosim.scenario.catalog import shipped_scenarios
+
+    found = shipped_scenarios()
+    if not found:
+        print("no installed package ships scenarios")
+        return 0
+    width = max(map(len, found)) + 2
+    for name, item in sorted(found.items()):
+        print(textwrap.fill(item.doc or "(no description)", width=110, initial_indent=f"{name:{width}s}",
+                            subsequent_indent=" " * width))
+    print(f"\nrun one by name: cosim run NAME (they are in {_common_folder(found)})")
+    return 0
+
+
+def _common_folder(found: dict) -> str:
+    return os.path.commonpath([str(item.path.parent) for item in found.values()])
 
 
 def cmd_schema(args) -> int:
@@ -225,6 +252,7 @@ def cmd_node(args) -> int:
     from cosim.scenario.schema import load_scenario
     from cosim.runtime.wiring import build_wiring
 
+    args.scenario = resolve_scenario(args.scenario)
     scenario = load_scenario(args.scenario, args.overrides)
     if args.component not in scenario.components:
         raise UserError(f"no component {args.component!r} in {args.scenario} "

@@ -25,9 +25,8 @@ import yaml
 
 from cosim.scenario.schema import load_document
 from cosim_plugins.paper import report_format
-from cosim_plugins.paper.dataset import REPO, ensure_dataset
-
-SCENARIOS = REPO / "scenarios"
+from cosim_plugins.paper.dataset import ensure_dataset
+from cosim_plugins.resources import SCENARIOS_DIR as SCENARIOS
 MODELS = ("physical", "sindy-nonlinear", "sindy-linear", "mlp")
 
 #: The paper's figures (Zhao et al.), by table / figure.

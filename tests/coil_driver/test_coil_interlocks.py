@@ -18,6 +18,7 @@ from cosim_plugins.coil_driver.backends import Rig
 from cosim_plugins.coil_driver.interlocks import Limits, ThermalBudget, limit_scale
 from cosim_plugins.coil_driver.inverse import InverseMagnetics
 from cosim_plugins.coil_driver.params import PARAMS
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).parents[2]
 
@@ -217,7 +218,7 @@ def test_bad_parameters_are_named_before_any_hardware_opens(params, message):
      "daq_rate_hz=150 gives 1.5 samples per 0.01 s tick"),  # the scenario's dt, not the default
 ])
 def test_cosim_validate_names_a_bad_backend_parameter_in_one_line(capsys, overrides, message):
-    args = ["validate", str(ROOT / "scenarios" / "racetrack.yaml")]
+    args = ["validate", str(SCENARIOS_DIR / "racetrack.yaml")]
     for item in overrides:
         args += ["--set", item]
     assert main(args) == 2

@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 from test_controllers_mpc_cross import curve_stats
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = SCENARIOS_DIR
 RUN = ["profile=lab", "duration_s=12", "components.controller.plugin=controller.mpc"]
 
 

@@ -6,8 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = SCENARIOS_DIR
 
 DURATION_S = 12.0
 #: Mean tracking error bound for the short run [mm] (60 s runs: PI ~1.8, MRAC ~0.6, MPC ~0.8).

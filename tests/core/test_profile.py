@@ -9,8 +9,9 @@ import pytest
 from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
 from cosim.record.summary import largest_below, monotonic_within_spread, pool_replicates
 from cosim_plugins.profiles import LAB
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = SCENARIOS_DIR
 
 
 def test_ideal_is_the_default_and_leaves_params_alone():

@@ -9,6 +9,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
+from cosim_plugins.resources import SCENARIOS_DIR
 
 GOOD = textwrap.dedent("""\
     name: t
@@ -119,7 +120,7 @@ def test_every_shipped_scenario_and_each_of_its_sweep_runs_validates():
 
     from cosim.runtime.wiring import build_wiring
 
-    root = Path(__file__).resolve().parents[2] / "scenarios"
+    root = SCENARIOS_DIR
     # cameras/ holds camera set-ups; flow_kf_sweep names model files the README's flow example fits first
     files = [p for p in sorted(root.rglob("*.yaml")) if p.parent.name != "cameras" and p.name != "flow_kf_sweep.yaml"]
     assert len(files) >= 10

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from pathlib import Path
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
-SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
+SCENARIO = SCENARIOS_DIR / "diagnose" / "plain.yaml"
 PLANT = "components.plant.params"
 DURATION_S = 40
 FIT_WINDOWS = 350  # half the default: the suite stays fast; benchmarks/diagnose.py runs the default

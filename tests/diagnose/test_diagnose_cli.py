@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 
 from cosim.cli import main
 from figure_checks import assert_labelled, spy_on_savefig
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -81,7 +82,7 @@ def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagno
     error = {}
     for name, path in (("plain", tmp_path / "plain" / "physical.npz"), ("with_flow", with_flow)):
         out = tmp_path / name
-        assert main(["run", str(ROOT / "scenarios" / "flow_kf_sweep.yaml"), "--out", str(out), "--quiet",
+        assert main(["run", str(SCENARIOS_DIR / "flow_kf_sweep.yaml"), "--out", str(out), "--quiet",
                      "--set", "sweep={}", "--set", "duration_s=40", "--set", f"components.estimator.params.model={path}",
                      "--set", "components.camera.params.interval_s=1.5"]) == 0
         summary = json.loads((out / "summary.json").read_text())
