@@ -10,6 +10,7 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from urllib.parse import quote
 
 from cosim.contract.errors import UserError
 from cosim.scenario.catalog import resolve_scenario
@@ -44,7 +45,7 @@ def add_commands(sub) -> None:
                    help="a sweep's run still going after S seconds of wall time is stopped and counted failed")
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("validate", help="check a scenario and print its wiring as a table")
+    p = sub.add_parser("validate", help="check a scenario as a run would and print its wiring as a table")
     p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.set_defaults(func=cmd_validate)
@@ -64,6 +65,11 @@ def add_commands(sub) -> None:
                    help="serve rerun's web viewer instead of opening a window (no display needed; open the "
                         "address it prints in a browser, through an SSH tunnel from another machine)")
     p.add_argument("--port", type=int, default=9090, help="the web viewer's HTTP port with --web (default 9090)")
+    p.add_argument("--data-port", type=int, default=9876,
+                   help="with --web: the port the viewer in the browser reads the recording from (default 9876)")
+    p.add_argument("--bind", default="127.0.0.1", metavar="ADDRESS",
+                   help="with --web: the address both ports listen on (default 127.0.0.1, this machine only; "
+                        "0.0.0.0 serves every network the machine is on)")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
@@ -157,16 +163,22 @@ def _print_run(summary: dict, out: Path) -> None:
         if rt:
             print(f"real-time pacing x{rt['factor']:g}: {rt['missed']} of {rt['ticks'] + rt['missed']} ticks "
                   f"missed, lateness p99 {rt['lateness_ms']['p99']} ms (max {rt['lateness_ms']['max']} ms)")
-    print(f"recording: {out / 'recording.rrd' if 'sweep' not in summary else out / 'runs'}")
+    if "sweep" in summary:  # every run's folder (and recording) is listed in the table
+        print(f"table:     {out / 'summary.md'}")
+    else:
+        print(f"recording: {out / 'recording.rrd'}")
     print(f"summary:   {out / 'summary.json'}")
 
 
 def cmd_validate(args) -> int:
+    from cosim.runtime.wiring import connection_table
+    from cosim.scenario.check import check_runs
     from cosim.scenario.schema import load_scenario
-    from cosim.runtime.wiring import build_wiring, connection_table
 
-    scenario = load_scenario(resolve_scenario(args.scenario), args.overrides)
-    print(connection_table(scenario, build_wiring(scenario)))
+    args.scenario = resolve_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, args.overrides)
+    wiring = check_runs(scenario, args.scenario, args.overrides)  # what `cosim run` checks before it starts
+    print(connection_table(scenario, wiring))
     if scenario.sweep:
         from cosim.scenario.schema import sweep_overrides
 
@@ -201,10 +213,13 @@ def cmd_schema(args) -> int:
 
 
 def cmd_plugins(args) -> int:
+    from cosim.contract.params import IDEAL
     from cosim.contract.plugins import kinds, registry
 
     for kind in kinds():
         entries = registry(kind)
+        if kind == "profile":
+            entries.setdefault("ideal", IDEAL)
         print(f"{kind}s:")
         for name, obj in sorted(entries.items()):
             own_doc = None if isinstance(obj, (dict, list, tuple)) else getattr(obj, "__doc__", None)  # not dict's
@@ -226,9 +241,11 @@ def cmd_replay(args) -> int:
     if not Path(viewer).exists():
         raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
     if args.web:
-        print(f"serving {rrd} in rerun's web viewer on port {args.port}: open the http address below in a "
-              "browser (Ctrl-C stops)", flush=True)
-        return _call_viewer([viewer, "--serve-web", "--web-viewer-port", str(args.port), *files])
+        print(f"serving {rrd} in rerun's web viewer (Ctrl-C stops); open in a browser:\n"
+              f"  {web_viewer_url(args.bind, args.port, args.data_port)}", flush=True)
+        # rerun's own log lines name the viewer's bare address too, which opens its welcome page: warnings only
+        return _call_viewer([viewer, "--serve-web", "--bind", args.bind, "--web-viewer-port", str(args.port),
+                             "--port", str(args.data_port), *files], env={**os.environ, "RUST_LOG": "warn"})
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise UserError(f"no display to open the viewer on ($DISPLAY and $WAYLAND_DISPLAY are unset): "
                         f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
@@ -237,10 +254,19 @@ def cmd_replay(args) -> int:
     return _call_viewer([viewer, *files])
 
 
-def _call_viewer(command: list[str]) -> int:
+def web_viewer_url(bind: str, port: int, data_port: int) -> str:
+    """The one address that opens the recording in rerun's web viewer (the viewer's page, told where to
+    read the data from); a wildcard ``bind`` is reached at this machine's loopback."""
+    host = "127.0.0.1" if bind in ("0.0.0.0", "::", "") else bind
+    host = f"[{host}]" if ":" in host else host
+    data = quote(f"rerun+http://{host}:{data_port}/proxy", safe="")
+    return f"http://{host}:{port}/?url={data}"
+
+
+def _call_viewer(command: list[str], env: dict | None = None) -> int:
     """Run the viewer until it ends; Ctrl-C ends it (and is not an error)."""
     try:
-        return subprocess.call(command)
+        return subprocess.call(command, env=env)
     except KeyboardInterrupt:
         return 0
 

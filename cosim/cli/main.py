@@ -10,6 +10,7 @@ analyses, e.g. ``cosim diagnose``, ``cosim camera``).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from cosim.cli import commands
@@ -48,6 +49,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("cosim: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the output went to a pager or `head` that has quit: not an error
+        sys.stdout = open(os.devnull, "w")
+        return 0
     except Exception as exc:  # one clear line for expected errors, see below
         if _is_user_error(exc):
             print(f"cosim {args.command}: error: {exc}", file=sys.stderr)

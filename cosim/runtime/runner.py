@@ -99,8 +99,13 @@ def stop_on_signals():
 
 
 def run(request: RunRequest) -> dict[str, Any]:
-    """Run the scenario, or every combination of its sweep; returns the summary written."""
+    """Run the scenario, or every combination of its sweep; returns the summary written. Every run is
+    checked first as ``cosim validate`` checks it (fields, plugins, parameters, wiring): a scenario
+    that does not validate writes nothing."""
     scenario = load_scenario(request.scenario_file, request.overrides)
+    from cosim.scenario.check import check_runs
+
+    check_runs(scenario, request.scenario_file, request.overrides)
     with stop_on_signals() as stop:
         if not scenario.sweep:
             return run_one(scenario, request, stop)
@@ -118,10 +123,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     """
     stop = stop or StopRequest()
     cpus = node_cpus(request.node_cpus) if request.processes else None
-    out = Path(request.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     wiring = build_wiring(scenario)
     path = make_path(scenario.path.plugin, scenario.path.params) if scenario.path else None
+    out = Path(request.out_dir)  # made only once the scenario has validated
+    out.mkdir(parents=True, exist_ok=True)
     run_id = secrets.token_hex(4)
     recorder = TraceRecorder(scenario, wiring, out, path)
     recorder.open()
