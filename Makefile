@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo example test fmu venv clean
+.PHONY: demo example test fmu venv docs doc-outputs clean
 
 demo: $(STAMP) fmu
 	$(VENV)/bin/cosim run racetrack --out runs/demo
@@ -25,12 +25,20 @@ fmu: $(STAMP)
 
 venv: $(STAMP)
 
+# The docs as a site in build/site (mkdocs serve: at http://127.0.0.1:8000, rebuilt as pages change).
+docs: $(STAMP)
+	$(VENV)/bin/mkdocs build --strict
+
+# Every command output the docs show, made again (tools/doc_outputs.py; --quick: the fast ones).
+doc-outputs: $(STAMP)
+	$(PY) tools/doc_outputs.py
+
 # torch is pinned to the local CPU wheel first so nothing pulls CUDA packages.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e '.[test,lab,cluster]'
+	$(PY) -m pip install -q -e '.[test,lab,cluster,docs]'
 	touch $@
 
 clean:

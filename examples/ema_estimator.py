@@ -2,7 +2,7 @@
 
 Load it from a scenario with ``plugins: [ema_estimator.py]`` (see
 ``ema_racetrack.yaml``), or ship it in a package with an entry point in the
-``cosim`` group. The README walks through it.
+``cosim`` group. docs/framework/writing-a-plugin.md walks through it.
 """
 
 import numpy as np

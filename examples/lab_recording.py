@@ -1,4 +1,4 @@
-"""Write a run as a rig's own recordings would look, for the README's "Your lab's logs" walkthrough.
+"""Write a run as a rig's own recordings would look, for the docs' "Your lab's logs" walkthrough (docs/lab-logs.md).
 
 A rig's controller logs its command when it sends it (here at 25 Hz, as a
 rotation axis and a spin frequency), and its tracker logs detections at the

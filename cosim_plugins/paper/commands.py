@@ -42,8 +42,9 @@ def add_reproduce_command(sub) -> None:
     p = sub.add_parser("reproduce", help="regenerate every table and figure of the paper in simulation")
     p.add_argument("--out", type=Path, required=True, help="report folder")
     p.add_argument("--quick", action="store_true", help="shortened experiments (a few minutes in all)")
-    p.add_argument("--readme", type=Path, default=None, metavar="README.md",
-                   help="also put the tables into this README's results block (plots go to docs/results/)")
+    p.add_argument("--docs", "--readme", dest="page", type=Path, default=None, metavar="PAGE.md",
+                   help="also put the tables into this page's results block, e.g. docs/results.md (plots go "
+                        "to the folder results/ beside it)")
     add_jobs_argument(p, "each sweep's runs at a time, each in a worker process")
     p.set_defaults(func=cmd_reproduce)
 
@@ -52,17 +53,17 @@ def cmd_reproduce(args) -> int:
     from cosim_plugins.paper.report_format import filled
     from cosim_plugins.paper.reproduce import reproduce
 
-    if args.readme and not args.readme.is_file():
-        raise UserError(f"--readme {args.readme} does not exist")
+    if args.page and not args.page.is_file():
+        raise UserError(f"--docs {args.page} does not exist")
 
     report = reproduce(args.out, quick=args.quick, jobs=parse_jobs(args.jobs))
     print(f"report: {args.out / 'report.md'} (and report.html, report.json); {report['wall_time_s']:.0f} s")
     empty = filled((args.out / "report.md").read_text())
     if empty:
         print(f"warning: {len(empty)} table rows have missing figures", file=sys.stderr)
-    if args.readme:
-        from cosim_plugins.paper.reproduce import update_readme
+    if args.page:
+        from cosim_plugins.paper.reproduce import update_results
 
-        update_readme(args.out, args.readme, args.readme.parent / "docs" / "results")
-        print(f"updated the results in {args.readme}")
+        update_results(args.out, args.page, args.page.parent / "results")
+        print(f"updated the results in {args.page}")
     return 0

@@ -102,7 +102,7 @@ def table4(report: dict) -> list[str]:
 PROFILE_NOTE = {
     "ideal": "the plant and camera as the scenarios give them: 20 mm/s cruise, 0.5 px camera noise, no "
              "latency, 0.2 % reflection outliers, still water",
-    "lab": "`--set profile=lab` (README *Profiles*): 40 mm/s cruise, 40 ms camera latency, 1 px noise, 2 % "
+    "lab": "`--set profile=lab` (docs: Profiles): 40 mm/s cruise, 40 ms camera latency, 1 px noise, 2 % "
            "reflection outliers, 2 % lost and 1 % dropped detections, a 1 mm/s convection flow, wall drag, "
            "added mass, and the paper's net weight (sinking at 12 mm/s along the axis) and drag anisotropy (1.165)",
 }
@@ -205,12 +205,12 @@ def paths(report: dict) -> list[str]:
                   + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items())
                   + f"; the paper's finding (MPC comparable to PI: its error at most 30 % above PI's) holds on "
                   f"{', '.join(within) if within else 'neither path'}."
-                  + (f" The MPC is more than 30 % ahead of PI on {', '.join(ahead)} (README *Profiles* says "
+                  + (f" The MPC is more than 30 % ahead of PI on {', '.join(ahead)} (the Profiles page says "
                      "where the difference comes from)." if ahead else "")
                   + ("" if len(within) == len(ratios) else
                      " The MPC predicts with the linear SINDy model identified on the profile's own dataset, "
                      "without its position terms, and steps the camera's late frame forward over its latency "
-                     "(README *Profiles*)."), ""]
+                     "(docs: Profiles)."), ""]
     m = report["paper"]["mpc_solve_ms"]
     lines += [f"The paper's MPC (MATLAB fmincon, SQP) took {m[0]} ± {m[1]} ms per solve; ours is the "
               "same objective as a condensed quadratic program set up once and solved warm-started by "

@@ -3,8 +3,8 @@
 ``ideal`` (the default, not registered here) runs every component with the
 parameters its scenario gives. ``lab`` sets, on every component of a
 scenario using these plugins, the values below: what the authors' rig has
-and our default emulation lacks. One place for all of them; the README's
-*Profiles* table gives each value's evidence (a figure of the paper, the
+and our default emulation lacks. One place for all of them; the docs'
+Profiles page (docs/profiles.md) gives each value's evidence (a figure of the paper, the
 authors' earlier work, or a physical estimate). None was tuned to make a
 figure of the reproduction come out at the paper's number.
 """

@@ -121,7 +121,7 @@ def test_every_shipped_scenario_and_each_of_its_sweep_runs_validates():
     from cosim.runtime.wiring import build_wiring
 
     root = SCENARIOS_DIR
-    # cameras/ holds camera set-ups; flow_kf_sweep names model files the README's flow example fits first
+    # cameras/ holds camera set-ups; flow_kf_sweep names model files the docs' flow example fits first
     files = [p for p in sorted(root.rglob("*.yaml")) if p.parent.name != "cameras" and p.name != "flow_kf_sweep.yaml"]
     assert len(files) >= 10
     for path in files:

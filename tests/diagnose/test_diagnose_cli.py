@@ -67,7 +67,7 @@ def test_validate_logs_are_the_held_out_data(plant_logs, tmp_path):
 
 
 def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagnosis, plant_logs, tmp_path):
-    """The README's walkthrough in quick form: the plant drifts at 3 mm/s; with 1.5 s between camera frames the
+    """The docs' walkthrough (docs/diagnose/walkthrough.md) in quick form: the plant drifts at 3 mm/s; with 1.5 s between camera frames the
     filter on the model diagnose saved (with the flow) predicts each frame and tracks better than on the plain model
     `cosim fit` makes (40 s runs)."""
     from cosim_plugins.identify.model import load_model
