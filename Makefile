@@ -15,7 +15,9 @@ example: $(STAMP)
 	$(PY) examples/dc_motor/build.py
 	$(VENV)/bin/cosim run examples/dc_motor/scenario.yaml --out runs/dc_motor
 
+# The linter (ruff, configured in pyproject.toml), then the suite (the docs' site build included).
 test: $(STAMP) fmu
+	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -n auto --dist loadscope
 
 # The plant FMU, built from the package's C sources into ~/.cache/cosim-swimmer/fmu on first use

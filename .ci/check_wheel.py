@@ -41,7 +41,8 @@ PROBE = textwrap.dedent('''
         code = main(args)
     except SystemExit as exc:
         code = exc.code
-    files = {name: Path(getattr(module, "__file__", None) or "/").resolve() for name, module in list(sys.modules.items())}
+    files = {name: Path(getattr(module, "__file__", None) or "/").resolve()
+             for name, module in list(sys.modules.items())}
     inside = sorted(name for name, file in files.items() if file.is_relative_to(src) and not file.is_relative_to(deps))
     if inside:
         sys.exit(f"imported from the source tree {src}: {', '.join(inside)}")
@@ -50,6 +51,7 @@ PROBE = textwrap.dedent('''
 
 
 def sh(*cmd, cwd: Path | None = None) -> str:
+    """Run ``cmd`` (printed first); its stdout, or exit naming the failure and its output."""
     print("$ " + " ".join(map(str, cmd)), flush=True)
     done = subprocess.run(list(map(str, cmd)), cwd=cwd, capture_output=True, text=True)
     if done.returncode != 0:
@@ -70,6 +72,7 @@ def tracked_copy(dest: Path) -> Path:
 
 
 def check_contents(wheel: Path, tree: Path) -> None:
+    """Exit unless ``wheel`` holds every module of the tree's two packages and the lab's data (:data:`DATA`)."""
     names = set(zipfile.ZipFile(wheel).namelist())
     modules = {p.relative_to(tree).as_posix() for pkg in ("cosim", "cosim_plugins")
                for p in (tree / pkg).rglob("*.py")}
@@ -80,6 +83,7 @@ def check_contents(wheel: Path, tree: Path) -> None:
 
 
 def main() -> int:
+    """Build, install and exercise the wheel outside the tree; 0 when everything held."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--keep", type=Path, default=None, help="work in this folder and keep it")
     args = parser.parse_args()
@@ -102,7 +106,8 @@ def main() -> int:
         print(sh(venv / "bin" / "cosim", "scenarios", cwd=elsewhere).splitlines()[0])
         # diagnose's held-out windows need more than one short log: a second seed validates
         for seed, out in ((1, "run"), (2, "held_out")):
-            sh(python, work / "probe.py", SRC, deps, "run", "racetrack", "--set", "duration_s=10", "--set", f"seed={seed}",
+            sh(python, work / "probe.py", SRC, deps, "run", "racetrack", "--set", "duration_s=10",
+               "--set", f"seed={seed}",
                "--out", out, "--quiet", cwd=elsewhere)
         report = sh(python, work / "probe.py", SRC, deps, "diagnose", "run/log.csv", "--validate", "held_out/log.csv",
                     "--effects", "gradient_force", "--out", "diagnosis", cwd=elsewhere)

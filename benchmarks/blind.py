@@ -106,7 +106,8 @@ def _worker(args) -> dict:
     try:
         return run_case(case, Path(out))
     except Exception as exc:  # one failed case is one failed row, never the whole bench
-        return {"index": case.index, "group": case.group, "effect": case.effect, "error": f"{type(exc).__name__}: {exc}"}
+        return {"index": case.index, "group": case.group, "effect": case.effect,
+                "error": f"{type(exc).__name__}: {exc}"}
 
 
 def summarise(records: list[dict]) -> dict:

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from cosim.runtime.runner import RunRequest, run
-from cosim.scenario.schema import load_scenario
 from cosim.runtime.stepper import setup_component
 from cosim.runtime.wiring import build_wiring
+from cosim.scenario.schema import load_scenario
 from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]

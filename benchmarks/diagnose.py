@@ -17,6 +17,7 @@ import json
 import tempfile
 import time
 from pathlib import Path
+
 from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,9 +46,9 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", default=str(ROOT / "cache" / "bench_diagnose"))
     args = ap.parse_args(argv)
 
-    from cosim_plugins.raw_log import read_logs
     from cosim_plugins.identify.diagnose import run
     from cosim_plugins.identify.report import write_outputs
+    from cosim_plugins.raw_log import read_logs
 
     files, record_s = make_logs(Path(args.cache))
     rows = sum(lg.n for lg in read_logs(files))

@@ -22,8 +22,8 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from cosim.scale.certs import make_certificates
 from cosim.runtime.runner import RunRequest, run
+from cosim.scale.certs import make_certificates
 from cosim_plugins.resources import SCENARIOS_DIR
 
 SCENARIO = SCENARIOS_DIR / "racetrack.yaml"

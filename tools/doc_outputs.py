@@ -79,7 +79,8 @@ DIAGNOSE_CODE = ("cosim_plugins.identify", "cosim_plugins.effects", "cosim_plugi
                  "cosim_plugins/scenarios/diagnose")
 
 BLOCKS: dict[str, Block] = {
-    "first-steps": Block(("cosim run racetrack --set components.camera.params.interval_s=0.1 --out runs/frames_100ms",)),
+    "first-steps": Block(("cosim run racetrack --set components.camera.params.interval_s=0.1 "
+                          "--out runs/frames_100ms",)),
     "scenarios": Block(("cosim scenarios",)),
     "validate": Block(("cosim validate racetrack",)),
     "swap-controller": Block(("cosim run racetrack --set components.controller.plugin=controller.mrac "
@@ -100,12 +101,14 @@ WALL_CLOCK = (re.compile(r"simulated in [\d.]+ s \(\d+x real time\)"), re.compil
 
 
 def mask(text: str) -> str:
+    """``text`` with its wall-clock figures replaced, for comparing two runs' outputs."""
     for pattern in WALL_CLOCK:
         text = pattern.sub("<wall clock>", text)
     return text
 
 
 def pages() -> list[Path]:
+    """The Markdown pages that may mark outputs: the README and every page under ``docs/``."""
     out = []
     for item in PAGES:
         path = ROOT / item
@@ -179,6 +182,7 @@ def run_block(name: str, folder: Path, done: set[str] | None = None) -> str:
 
 
 def marker(name: str) -> str:
+    """The opening marker of output ``name`` (with its code digest when it is slow)."""
     block = BLOCKS[name]
     return f"<!-- output: {name}{f' digest={digest(block)}' if block.slow else ''} -->\n"
 
@@ -197,6 +201,7 @@ def write(outputs: dict[str, str]) -> list[Path]:
 
 
 def make(names: list[str]) -> dict[str, str]:
+    """Make the outputs ``names`` in one fresh folder; ``{name: the text its marker holds}``."""
     outputs: dict[str, str] = {}
     with tempfile.TemporaryDirectory(prefix="cosim-docs-") as tmp:
         done: set[str] = set()
@@ -206,6 +211,7 @@ def make(names: list[str]) -> dict[str, str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line: make the named outputs (or all, or the quick ones) and write them into the pages."""
     parser = argparse.ArgumentParser(description="Regenerate the command outputs the docs show.")
     parser.add_argument("names", nargs="*", help=f"outputs to make (default: all): {', '.join(BLOCKS)}")
     parser.add_argument("--quick", action="store_true", help="only the quick ones (what the test re-runs)")

@@ -15,11 +15,11 @@ from urllib.parse import quote
 from cosim.contract.errors import UserError
 from cosim.scenario.catalog import resolve_scenario
 
-
 SCENARIO_HELP = "a scenario YAML file, or the name of a shipped one (see `cosim scenarios`), e.g. racetrack"
 
 
 def add_commands(sub) -> None:
+    """Add the framework's subcommands to the ``cosim`` parser's ``sub`` (argparse subparsers)."""
     p = sub.add_parser("run", help="run a scenario (or its sweep) and record it")
     p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
@@ -101,6 +101,7 @@ def add_commands(sub) -> None:
 
 
 def cmd_run(args) -> int:
+    """``cosim run``: run a scenario or its sweep; 1 when a sweep run failed, 130 when stopped."""
     from cosim.runtime.runner import RunRequest, run
     from cosim.scenario.schema import load_scenario
 
@@ -138,6 +139,7 @@ def cmd_run(args) -> int:
 
 
 def add_jobs_argument(parser, what: str) -> None:
+    """Add ``--jobs N|auto`` to ``parser``; ``what`` says what runs that many at a time."""
     parser.add_argument("--jobs", default=None, metavar="N|auto",
                         help=f"{what} (auto: one per CPU this process may use; default 1)")
 
@@ -171,6 +173,7 @@ def _print_run(summary: dict, out: Path) -> None:
 
 
 def cmd_validate(args) -> int:
+    """``cosim validate``: check a scenario as a run would and print its wiring."""
     from cosim.runtime.wiring import connection_table
     from cosim.scenario.check import check_runs
     from cosim.scenario.schema import load_scenario
@@ -187,6 +190,7 @@ def cmd_validate(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
+    """``cosim scenarios``: the shipped scenarios, one line each with its description."""
     from cosim.scenario.catalog import shipped_scenarios
 
     found = shipped_scenarios()
@@ -206,6 +210,7 @@ def _common_folder(found: dict) -> str:
 
 
 def cmd_schema(args) -> int:
+    """``cosim schema``: the scenario format's JSON Schema on stdout."""
     from cosim.scenario.schema import json_schema
 
     print(json.dumps(json_schema(), indent=2))
@@ -213,6 +218,7 @@ def cmd_schema(args) -> int:
 
 
 def cmd_plugins(args) -> int:
+    """``cosim plugins``: what the installed plugins register, by kind, each with its first sentence."""
     from cosim.contract.params import IDEAL
     from cosim.contract.plugins import kinds, registry
 
@@ -231,6 +237,7 @@ def cmd_plugins(args) -> int:
 
 
 def cmd_replay(args) -> int:
+    """``cosim replay``: open a run's recording in the rerun viewer, or serve it to a browser (``--web``)."""
     rrd = args.run_dir / "recording.rrd" if args.run_dir.is_dir() else args.run_dir
     if not rrd.is_file():
         raise UserError(f"no recording at {rrd}")
@@ -272,11 +279,12 @@ def _call_viewer(command: list[str], env: dict | None = None) -> int:
 
 
 def cmd_node(args) -> int:
+    """``cosim node``: serve one component of a scenario in this process until the run ends."""
     from cosim.runtime.bus import TlsFiles
     from cosim.runtime.fingerprint import Fingerprint
     from cosim.runtime.node import serve
-    from cosim.scenario.schema import load_scenario
     from cosim.runtime.wiring import build_wiring
+    from cosim.scenario.schema import load_scenario
 
     args.scenario = resolve_scenario(args.scenario)
     scenario = load_scenario(args.scenario, args.overrides)
@@ -296,6 +304,7 @@ def cmd_node(args) -> int:
 
 
 def cmd_certs(args) -> int:
+    """``cosim certs``: a run's CA and one certificate per host of a hosts file."""
     from cosim.scale.certs import make_certificates
 
     if args.days < 1:

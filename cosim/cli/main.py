@@ -22,6 +22,7 @@ class CLIError(Exception):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``cosim`` parser: the framework's commands and those the installed plugins add."""
     parser = argparse.ArgumentParser(
         prog="cosim",
         description="Lockstep co-simulation over zenoh: run, sweep, record and replay scenarios; "
@@ -36,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``cosim`` command on ``argv``; its exit status (2 and one line for a user's error)."""
     try:
         parser = build_parser()
     except Exception as exc:  # a plugin that fails to load or register its commands

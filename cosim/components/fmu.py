@@ -103,7 +103,8 @@ class FmuComponent(Component):
         settable = {n: v for n, v in variables.items() if v.causality == "parameter"}
         unknown = sorted(set(params) - set(settable))
         if unknown:
-            raise ComponentError(f"unknown parameter(s) {', '.join(unknown)}; valid: {', '.join([*OPTIONS, *settable])}")
+            raise ComponentError(f"unknown parameter(s) {', '.join(unknown)}; "
+                                 f"valid: {', '.join([*OPTIONS, *settable])}")
         missing = [n for names in (*cls.input_variables.values(), *cls.output_variables.values())
                    for n in names if n not in variables]
         if missing:

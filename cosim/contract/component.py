@@ -9,12 +9,12 @@ global RNG, so a run is reproducible from its scenario and seed.
 
 from __future__ import annotations
 
-from cosim.contract.errors import UserError
-
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
+
+from cosim.contract.errors import UserError
 
 
 class ComponentError(UserError):

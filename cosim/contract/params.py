@@ -18,6 +18,7 @@ CONTEXT_KEYS = ("dt", "path", "run_dir", "recording_id", "name")
 
 @dataclass(frozen=True)
 class Param:
+    """One component parameter: its default (whose type the value must have), what it is, and bounds for a number."""
     default: Any
     doc: str = ""
     lo: float | None = None

@@ -82,6 +82,7 @@ def registry(kind: str) -> dict[str, Any]:
 
 
 def hook_name(kind: str) -> str:
+    """The name of the hook that provides things of ``kind``: ``cosim_register_<kind>s``."""
     return f"cosim_register_{kind}s"
 
 

@@ -29,21 +29,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim.record.recorder import TraceRecorder
+from cosim.record.summary import run_figures
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
-from cosim.scale.hosts import load_hosts
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
-from cosim.scenario.paths import make_path
 from cosim.runtime.placement import node_cpus
 from cosim.runtime.portcache import PortCache, PortStore
-from cosim.record.recorder import TraceRecorder
-from cosim.scenario.schema import Scenario, load_scenario
-from cosim.runtime.scheduler import (WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest,
-                             with_close_faults)
+from cosim.runtime.scheduler import (
+    WINDOW,
+    LocalGroup,
+    RemoteGroup,
+    RunError,
+    RunFault,
+    Scheduler,
+    StopRequest,
+    with_close_faults,
+)
 from cosim.runtime.stepper import Stepper, setup_component
-from cosim.record.summary import run_figures
 from cosim.runtime.wiring import build_wiring
-
+from cosim.scale.hosts import load_hosts
+from cosim.scenario.paths import make_path
+from cosim.scenario.schema import Scenario, load_scenario
 
 
 @dataclass
@@ -274,5 +281,6 @@ class _progress_bar:
 
 
 def write_json(path: Path, obj) -> None:
+    """Write ``obj`` to ``path`` as indented JSON, making its folder first."""
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(obj, indent=2) + "\n")

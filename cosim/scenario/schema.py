@@ -19,8 +19,8 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from cosim.runtime.bus import RESERVED_NAMES
 from cosim.contract.errors import UserError
+from cosim.runtime.bus import RESERVED_NAMES
 
 
 class ScenarioError(UserError):
@@ -47,6 +47,7 @@ class InputSpec(_Strict):
 
 
 class ComponentSpec(_Strict):
+    """One component of a scenario: its plugin, parameters, input wires, period and timeout."""
     plugin: str = Field(description="registered component name, see `cosim plugins`")
     params: dict[str, Any] = Field(default_factory=dict)
     inputs: dict[str, InputSpec] = Field(default_factory=dict)
@@ -62,6 +63,7 @@ class ComponentSpec(_Strict):
 
 
 class PathSpec(_Strict):
+    """The scenario's reference path: a registered path plugin and its parameters."""
     plugin: str
     params: dict[str, Any] = Field(default_factory=dict)
 
@@ -118,6 +120,7 @@ class ReportSpec(_Strict):
 
 
 class Scenario(_Strict):
+    """A validated scenario (see the module docstring and ``cosim schema``)."""
     name: str
     description: str = ""
     duration_s: float = Field(gt=0)
@@ -277,9 +280,8 @@ def apply_profile(data: dict, name: Any, source: str = "<scenario>",
 def profile_values(name: Any, source: str = "<scenario>") -> dict:
     """The values profile ``name`` sets, ``{plugin name: {param: value}}`` (``ideal``, unless a plugin
     registers it: none); an unknown profile raises :class:`ScenarioError` naming ``source``."""
-    from cosim.contract.plugins import registry
-
     from cosim.contract.params import IDEAL
+    from cosim.contract.plugins import registry
 
     profiles = registry("profile")
     if name == "ideal" and name not in profiles:
@@ -357,6 +359,7 @@ def line_of(node: YamlDocument | yaml.Node | None, loc) -> int | None:
 
 
 def parse_override(item: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` (``--set``) as ``(dotted key, value)``, the value read as YAML."""
     if "=" not in item:
         raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.camera.params.interval_s=0.1")
     key, raw = item.split("=", 1)

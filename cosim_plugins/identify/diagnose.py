@@ -31,7 +31,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from cosim_plugins.raw_log import read_logs
 from cosim.contract.errors import UserError
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
@@ -41,6 +40,7 @@ from cosim_plugins.identify.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.identify.timeline import Timeline
 from cosim_plugins.identify.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.identify.verdict import fit_notes, paired_t, verdict
+from cosim_plugins.raw_log import read_logs
 
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"

@@ -10,11 +10,13 @@ from cosim.contract.errors import UserError
 
 
 def add_commands(sub) -> None:
+    """Add ``cosim dataset`` and ``cosim reproduce`` to the ``cosim`` parser's ``sub``."""
     add_dataset_command(sub)
     add_reproduce_command(sub)
 
 
 def add_dataset_command(sub) -> None:
+    """Add ``cosim dataset`` to ``sub``."""
     p = sub.add_parser("dataset", help="generate (or reuse) the paper's training, test and validation logs")
     p.add_argument("--quick", action="store_true", help="40 s runs instead of 290 s each")
     p.add_argument("--out", type=Path, default=None, help="folder (default: the cache, $COSIM_CACHE or ./cache)")
@@ -26,6 +28,7 @@ def add_dataset_command(sub) -> None:
 
 
 def cmd_dataset(args) -> int:
+    """``cosim dataset``: generate (or reuse) the paper's logs and print where they are."""
     from cosim_plugins.paper.dataset import ensure_dataset
 
     ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force, jobs=parse_jobs(args.jobs),
@@ -39,6 +42,7 @@ def cmd_dataset(args) -> int:
 
 
 def add_reproduce_command(sub) -> None:
+    """Add ``cosim reproduce`` to ``sub``."""
     p = sub.add_parser("reproduce", help="regenerate every table and figure of the paper in simulation")
     p.add_argument("--out", type=Path, required=True, help="report folder")
     p.add_argument("--quick", action="store_true", help="shortened experiments (a few minutes in all)")
@@ -50,6 +54,7 @@ def add_reproduce_command(sub) -> None:
 
 
 def cmd_reproduce(args) -> int:
+    """``cosim reproduce``: every table and figure of the paper, and the docs' results page on request."""
     from cosim_plugins.paper.report_format import filled
     from cosim_plugins.paper.reproduce import reproduce
 

@@ -42,11 +42,13 @@ TEST_SEED = 300
 
 
 def cache_dir() -> Path:
+    """The cache folder: ``$COSIM_CACHE``, else ``./cache``."""
     return Path(os.environ.get("COSIM_CACHE", "cache")).resolve()
 
 
 @dataclass
 class PaperDataset:
+    """The dataset's log files by split, and the folder holding them."""
     training: list[Path]
     test: list[Path]
     validation: list[Path]
@@ -58,9 +60,9 @@ def _fingerprint(quick: bool, profile: str = "ideal") -> str:
     components and paths the scenarios use (with the plugin modules those import), the
     length and the profile (its name and values; ``ideal`` adds nothing, so its cache
     keys are those of the data made before profiles existed)."""
+    from cosim.runtime.wiring import build_wiring
     from cosim.scenario.paths import make_path
     from cosim.scenario.schema import load_scenario
-    from cosim.runtime.wiring import build_wiring
     from cosim_plugins.plant.build import ensure_fmu
 
     h = hashlib.sha256()

@@ -32,6 +32,7 @@ def _sweep(result: dict) -> list[dict]:
 
 
 def table2(report: dict) -> list[str]:
+    """The report's Table II lines: training time and parameter count, ours next to the paper's."""
     ours, paper = report["ours"]["table2"]["models"], report["paper"]["table2"]
     rows = [[NAMES[m], _n(ours[m]["train_time_s"]), _n(paper[m][0]), str(ours[m]["n_params"]), str(paper[m][1])]
             for m in paper if m in ours]
@@ -57,6 +58,7 @@ def _rollout(result: dict, horizon: str) -> str:
 
 
 def table3(report: dict) -> list[str]:
+    """The report's Table III lines: prediction errors by split, ours next to the paper's."""
     lines = ["## Table III: prediction error against the measurements [mm]", "",
              "One step ahead (per axis and norm, the paper's Table III), and at the end of open-loop "
              "rollouts of 0.1, 0.42 and 1.0 s fed the recorded commands (norm).", ""]
@@ -84,6 +86,7 @@ def table3(report: dict) -> list[str]:
 
 
 def table4(report: dict) -> list[str]:
+    """The report's Table IV lines: real-time prediction on the rotating circle, ours next to the paper's."""
     paper = report["paper"]["table4"]
     rows = []
     for r in _sweep(report["ours"]["table4"]):
@@ -118,6 +121,7 @@ def _profiles(report: dict, key: str) -> list[str]:
 
 
 def fig6(report: dict) -> list[str]:
+    """The report's Fig. 6 lines: tracking error against the feedback interval, per profile."""
     lines = ["## Fig. 6: tracking error against the camera feedback interval", ""]
     for profile in _profiles(report, "fig6"):
         lines += _fig6_profile(report, profile)
@@ -176,6 +180,7 @@ def _fig6_profile(report: dict, profile: str) -> list[str]:
 
 
 def paths(report: dict) -> list[str]:
+    """The report's path-following lines (Fig. 3, Fig. 7, Sec. III-E), per profile."""
     lines = ["## Fig. 3, Fig. 7 and Sec. III-E: path following with PI, MRAC and MPC", ""]
     paper = report["paper"]["paths"]
     for profile in _profiles(report, "racetrack"):
@@ -220,6 +225,7 @@ def paths(report: dict) -> list[str]:
 
 
 def markdown(report: dict) -> str:
+    """The whole report as Markdown."""
     mode = "quick (shortened experiments)" if report["quick"] else "full"
     lines = ["# Reproduction of the paper's results in simulation", "",
              f"Mode: {mode}. Wall time: {report['wall_time_s']:.0f} s with {report.get('jobs', 1)} run(s) at a "

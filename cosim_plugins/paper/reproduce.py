@@ -27,6 +27,7 @@ from cosim.scenario.schema import load_document
 from cosim_plugins.paper import report_format
 from cosim_plugins.paper.dataset import ensure_dataset
 from cosim_plugins.resources import SCENARIOS_DIR as SCENARIOS
+
 MODELS = ("physical", "sindy-nonlinear", "sindy-linear", "mlp")
 
 #: The paper's figures (Zhao et al.), by table / figure.
@@ -208,7 +209,8 @@ def reproduce(out_dir: Path, quick: bool = False, jobs: int = 1) -> dict:
             results[key] = step()
             timings[key] = round(time.perf_counter() - t0, 2)
     results["dataset"] = _dataset_info(results["dataset"])
-    report = {"quick": quick, "jobs": jobs, "wall_time_s": round(time.perf_counter() - wall0, 1), "step_time_s": timings,
+    report = {"quick": quick, "jobs": jobs, "wall_time_s": round(time.perf_counter() - wall0, 1),
+              "step_time_s": timings,
               "machine": {"cpus": os.cpu_count(), "platform": platform.platform()}, "paper": PAPER, "ours": results}
     (out_dir / "report.json").write_text(json.dumps(report, indent=2, default=str) + "\n")
     markdown = report_format.markdown(report)

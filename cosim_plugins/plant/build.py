@@ -149,6 +149,7 @@ def ensure_fmu(path: str | os.PathLike | None = None) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line: build the FMU (``--out``) or ensure the cached one; prints its path."""
     parser = argparse.ArgumentParser(description="Build the swimmer plant FMU.")
     parser.add_argument("--out", default=None,
                         help="build into this .fmu file (default: the user cache's, built only if missing)")

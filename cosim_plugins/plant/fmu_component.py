@@ -12,8 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
-from cosim import ComponentError, Port
+from cosim import Port
 from cosim.components import FmuComponent
+
 
 class FmuPlant(FmuComponent):
     """Six-coil manipulator + spiral swimmer + tank, simulated by the C FMU."""

@@ -7,8 +7,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from cosim.cli import main
 from recording_checks import recorded_entities
+
+from cosim.cli import main
 from cosim_plugins.resources import SCENARIOS_DIR, package_path
 
 REPO = Path(__file__).parents[2]

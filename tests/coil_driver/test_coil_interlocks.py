@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from coil_fakes import DT, RecordingReference, spin
+
 from cosim import ComponentError
 from cosim.cli import main
 from cosim_plugins.coil_driver.actuation import impedance_ohm

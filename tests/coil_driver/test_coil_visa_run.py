@@ -15,10 +15,10 @@ import time
 from pathlib import Path
 
 import pytest
-
 from coil_fakes import ADDRESSES, STUCK, skip_if_ni_daqmx_installed
-from cosim.cli import main
 from recording_checks import recorded_events
+
+from cosim.cli import main
 from cosim_plugins.resources import SCENARIOS_DIR
 
 RACETRACK = SCENARIOS_DIR / "racetrack.yaml"

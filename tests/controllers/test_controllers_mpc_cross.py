@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from cosim_plugins.resources import SCENARIOS_DIR
 
 SCENARIOS = SCENARIOS_DIR

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+
 from cosim_plugins.resources import SCENARIOS_DIR
 
 SCENARIOS = SCENARIOS_DIR

@@ -42,6 +42,7 @@ def test_replay_without_a_recording_is_a_clear_error(tmp_path, capsys):
 
 
 def test_node_with_a_bad_endpoint_is_a_clear_error(capsys):
-    args = ["node", "plant", str(SCENARIOS_DIR / "racetrack.yaml"), "--run-id", "x", "--connect", "tcp/127.0.0.1:1", "--listen", "garbage"]
+    args = ["node", "plant", str(SCENARIOS_DIR / "racetrack.yaml"), "--run-id", "x", "--connect", "tcp/127.0.0.1:1",
+            "--listen", "garbage"]
     assert main(args) == 2
     assert "bad zenoh endpoint in --listen garbage" in capsys.readouterr().err

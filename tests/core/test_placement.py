@@ -46,7 +46,8 @@ def test_pinning_moves_every_thread_and_later_ones_under_sched_batch():
         "t = threading.Thread(target=early); t.start()\n"
         f"pin_this_process('{cpu}')\n"
         "ev.set(); t.join()\n"
-        "late = threading.Thread(target=lambda: seen.__setitem__('late', (os.sched_getaffinity(0), os.sched_getscheduler(0))))\n"
+        "late = threading.Thread(target=lambda: seen.__setitem__('late', (os.sched_getaffinity(0), "
+        "os.sched_getscheduler(0))))\n"
         "late.start(); late.join()\n"
         "print(all(s == ({" + str(cpu) + "}, os.SCHED_BATCH) for s in seen.values()) and len(seen) == 2)\n"
     )

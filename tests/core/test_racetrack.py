@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 from cosim.cli import main
 from cosim_plugins.resources import SCENARIOS_DIR

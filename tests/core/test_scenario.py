@@ -116,7 +116,6 @@ def test_every_shipped_scenario_and_each_of_its_sweep_runs_validates():
     """What `cosim validate` checks (fields, plugins, their parameters, the wiring), on every file in
     scenarios/ and on each run of its sweep, so a typo in a shipped sweep row fails here, not an
     hour into a reproduction."""
-    from pathlib import Path
 
     from cosim.runtime.wiring import build_wiring
 

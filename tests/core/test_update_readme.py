@@ -15,7 +15,8 @@ def test_plots_sharing_a_name_get_their_own_assets(tmp_path):
         (report / "runs" / run).mkdir(parents=True)
         (report / "runs" / run / "sweep_interval_s.png").write_bytes(content)
     (report / "report.md").write_text(
-        "# Reproduction\n\n## Fig. 6\n\n### Profile: ideal\n\n![a (ideal)](runs/feedback_sweep/sweep_interval_s.png)\n\n"
+        "# Reproduction\n\n## Fig. 6\n\n### Profile: ideal\n\n"
+        "![a (ideal)](runs/feedback_sweep/sweep_interval_s.png)\n\n"
         "### Profile: lab\n\n![a (lab)](runs/feedback_sweep_lab/sweep_interval_s.png)\n")
     (report / "report.json").write_text(json.dumps({"wall_time_s": 1.0}))
     readme = tmp_path / "results.md"

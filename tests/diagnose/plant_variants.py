@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+
 from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -23,8 +24,9 @@ VARIANTS = {
 def record_and_diagnose(job):
     """(variant, log paths, diagnosis result) of one variant: its four logs recorded into ``root``."""
     variant, root = job
-    from cosim_plugins.identify.diagnose import Settings, run as diagnose
     from cosim.runtime.runner import RunRequest, run
+    from cosim_plugins.identify.diagnose import Settings
+    from cosim_plugins.identify.diagnose import run as diagnose
 
     out = Path(root) / variant
     run(RunRequest(SCENARIO, out, [f"duration_s={DURATION_S}", *VARIANTS[variant]], progress=False))
