@@ -29,9 +29,10 @@ from pathlib import Path
 import numpy as np
 
 from cosim.runtime.runner import RunRequest, run
-from cosim.scenario.schema import load_scenario
 from cosim.runtime.stepper import setup_component
 from cosim.runtime.wiring import build_wiring
+from cosim.scenario.schema import load_scenario
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 #: outputs that report timings rather than results: never compared
@@ -87,7 +88,7 @@ def replay(scenario, wiring, name: str, inputs: list[dict], trace: dict[str, np.
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", type=Path, default=ROOT / "scenarios" / "racetrack.yaml")
+    parser.add_argument("--scenario", type=Path, default=SCENARIOS_DIR / "racetrack.yaml")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--components", default="", help="comma-separated names (default: all but the plant)")
     parser.add_argument("--repeats", type=int, default=5, help="replays per component (each a fresh set-up)")

@@ -18,8 +18,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from cosim_plugins.resources import SCENARIOS_DIR
+
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
+SCENARIO = SCENARIOS_DIR / "diagnose" / "plain.yaml"
 BUDGET_S = 60.0
 N_LOGS = 5
 HIDDEN = ["components.plant.params.background_flow_on=true", "components.plant.params.flow_x=0.003"]
@@ -44,9 +46,9 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", default=str(ROOT / "cache" / "bench_diagnose"))
     args = ap.parse_args(argv)
 
-    from cosim_plugins.raw_log import read_logs
     from cosim_plugins.diagnose.pipeline import run
     from cosim_plugins.diagnose.report import write_outputs
+    from cosim_plugins.raw_log import read_logs
 
     files, record_s = make_logs(Path(args.cache))
     rows = sum(lg.n for lg in read_logs(files))

@@ -22,10 +22,11 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from cosim.scale.certs import make_certificates
 from cosim.runtime.runner import RunRequest, run
+from cosim.scale.certs import make_certificates
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
+SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
 
 
 def _port(address: str) -> int:

@@ -101,9 +101,9 @@ def bench_model(kind: str, log, steps: int, q_logs: list[str], repeat: int) -> d
 
 
 def main() -> None:
-    from cosim_plugins.raw_log import read_log
-    from cosim_plugins.paper.dataset import ensure_dataset
     from cosim_plugins.identify.cache import quick_data
+    from cosim_plugins.paper.dataset import ensure_dataset
+    from cosim_plugins.raw_log import read_log
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated model kinds or files")

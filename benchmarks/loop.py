@@ -23,8 +23,9 @@ import tempfile
 from pathlib import Path
 
 from cosim.runtime.runner import RunRequest, run
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
+SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
 
 
 def cpu_times() -> list[int] | None:

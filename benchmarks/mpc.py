@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from cosim.runtime.runner import RunRequest, run
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "controllers_racetrack.yaml"
+SCENARIO = SCENARIOS_DIR / "controllers_racetrack.yaml"
 
 
 def main() -> None:

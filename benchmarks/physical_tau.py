@@ -1,4 +1,4 @@
-"""Why the KF on the physical model is not monotonic near 1 s frames (Fig. 6, README *Estimators*).
+"""Why the KF on the physical model is not monotonic near 1 s frames (Fig. 6, docs/estimators.md).
 
 Rolls the cached physical model out open loop from the plant's TRUE state (``trace.npz``:
 ``plant.position``, ``plant.velocity``) with the commands as applied, over ``T`` s, and

@@ -18,8 +18,9 @@ import tempfile
 from pathlib import Path
 
 from cosim.runtime.runner import RunRequest, run
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
+SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
 BUDGETS = {"missed_pct_max": 0.1, "lateness_p99_ms_max": 2.0}
 
 

@@ -25,10 +25,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from cosim.scenario.schema import load_scenario, sweep_overrides
 from cosim.scale.sweep import prepare_caches
+from cosim.scenario.schema import load_scenario, sweep_overrides
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "feedback_sweep.yaml"
+SCENARIO = SCENARIOS_DIR / "feedback_sweep.yaml"
 TIMINGS = ("solve_ms",)
 
 

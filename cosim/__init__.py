@@ -12,10 +12,19 @@ The names below are the public API a plugin imports; ``FmuComponent`` and
 ``component_recording`` are loaded on first use (they bring fmpy and rerun).
 """
 
-from cosim.contract.component import Component, ComponentError, ComponentFault, Port
-from cosim.contract.errors import UserError
-from cosim.contract.hookspecs import hookimpl, hookspec
-from cosim.contract.params import Param, read_params, whole_ticks
+import sys
+
+try:
+    from cosim.contract.component import Component, ComponentError, ComponentFault, Port
+    from cosim.contract.errors import UserError
+    from cosim.contract.hookspecs import hookimpl, hookspec
+    from cosim.contract.params import Param, read_params, whole_ticks
+except ModuleNotFoundError as _missing:  # `python -m cosim` from a Python without the dependencies
+    if sys.argv[:1] != ["-m"] or (_missing.name or "").startswith("cosim"):
+        raise
+    sys.exit(f"python -m cosim: this Python ({sys.executable}) lacks cosim's dependency {_missing.name!r}. "
+             "Run cosim with the Python it is installed in: `make venv` makes .venv in a checkout, then "
+             "`.venv/bin/cosim` (or `. .venv/bin/activate` and `cosim`); or `pip install .` into this one.")
 
 __all__ = ["Component", "ComponentError", "ComponentFault", "FmuComponent", "Param", "Port", "UserError",
            "component_recording", "hookimpl", "hookspec", "read_params", "whole_ticks"]

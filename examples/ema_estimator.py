@@ -2,7 +2,7 @@
 
 Load it from a scenario with ``plugins: [ema_estimator.py]`` (see
 ``ema_racetrack.yaml``), or ship it in a package with an entry point in the
-``cosim`` group. The README walks through it.
+``cosim`` group. docs/framework/writing-a-plugin.md walks through it.
 """
 
 import numpy as np
@@ -15,9 +15,11 @@ class EmaEstimator(Component):
 
     inputs = (Port("position", (3,), "m", "measurement; NaN when no frame arrived"),)
     outputs = (Port("position", (3,), "m"), Port("velocity", (3,), "m/s"))
+    #: what `cosim validate` checks (names, types, bounds) before a run starts
+    params_spec = {"alpha": Param(0.5, "weight of a new frame", 0.0, 1.0)}
 
     def setup(self, params, rng):
-        self.alpha = read_params(params, {"alpha": Param(0.5, "weight of a new frame", 0.0, 1.0)})["alpha"]
+        self.alpha = read_params(params, self.params_spec)["alpha"]
         self.position, self.velocity, self.t_last = np.full(3, np.nan), np.zeros(3), None
 
     def initial_outputs(self):

@@ -1,4 +1,4 @@
-"""Write a run as a rig's own recordings would look, for the README's "Your lab's logs" walkthrough.
+"""Write a run as a rig's own recordings would look, for the docs' "Your lab's logs" walkthrough (docs/lab-logs.md).
 
 A rig's controller logs its command when it sends it (here at 25 Hz, as a
 rotation axis and a spin frequency), and its tracker logs detections at the
@@ -6,7 +6,8 @@ cameras' frame times (here 50 frames/s, 4 ms after the control ticks, in mm,
 about 5 % of the frames lost and missing from the file; ``--fps`` sets
 another rate). This script writes both from a run folder
 of `cosim run` (the applied commands of its ``log.csv``, the true positions
-of its ``trace.npz``), so `cosim convert` has something real to convert; on a rig, export the same two files from its own logs.
+of its ``trace.npz``), so `cosim convert` has something real to convert; on a rig, export the same two
+files from its own logs.
 
     python examples/lab_recording.py RUN_DIR --out FOLDER [--fps 50]   # FOLDER/commands.csv, detections.csv
 """
@@ -52,6 +53,7 @@ def write_recording(run_dir: Path, out: Path, fps: float = 50.0, seed: int = 0) 
 
 
 def main() -> None:
+    """The command line: write a run's commands and detections as a rig would record them."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run_dir", type=Path, help="a run folder of `cosim run` (holds trace.npz)")
     ap.add_argument("--out", type=Path, required=True, help="folder for commands.csv and detections.csv")

@@ -53,9 +53,8 @@ def toy_plugins():
 @pytest.fixture
 def saved_figures(monkeypatch):
     """{file name: figure_labels(fig)} of every matplotlib figure saved while the test runs."""
-    from matplotlib.figure import Figure
-
     from figure_checks import spy_on_savefig
+    from matplotlib.figure import Figure
 
     seen: dict = {}
     monkeypatch.setattr(Figure, "savefig", spy_on_savefig(Figure.savefig, seen))

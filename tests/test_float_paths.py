@@ -20,6 +20,7 @@ import math
 import numpy as np
 import pytest
 
+from cosim_plugins import vec3
 from cosim_plugins.camera.emulator import _rint
 from cosim_plugins.coil_driver.actuation import impedance_ohm
 from cosim_plugins.coil_driver.interlocks import Limits, ThermalBudget, limit_scale
@@ -27,7 +28,6 @@ from cosim_plugins.coil_driver.inverse import InverseMagnetics
 from cosim_plugins.controllers.pi import PIController
 from cosim_plugins.controllers.pure_pursuit import WINDOW_AHEAD, WINDOW_BACK, PurePursuit
 from cosim_plugins.paths.shapes import Circle, Racetrack
-from cosim_plugins import vec3
 
 DT = 0.02
 

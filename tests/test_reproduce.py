@@ -5,9 +5,10 @@ from __future__ import annotations
 import json
 import re
 
+from figure_checks import assert_labelled
+
 from cosim.cli import main
 from cosim_plugins.paper.report_format import filled
-from figure_checks import assert_labelled
 
 
 def test_quick_reproduction_fills_every_table(tmp_path, monkeypatch, capsys, saved_figures):

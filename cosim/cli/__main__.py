@@ -1,3 +1,5 @@
+"""``python -m cosim.cli``: the ``cosim`` command."""
+
 import sys
 
 from cosim.cli.main import main

@@ -1,4 +1,4 @@
-"""The framework's commands: run, validate, schema, plugins, replay, node, certs."""
+"""The framework's commands: run, validate, scenarios, schema, plugins, replay, node, certs."""
 
 from __future__ import annotations
 
@@ -10,13 +10,18 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from urllib.parse import quote
 
 from cosim.contract.errors import UserError
+from cosim.scenario.catalog import resolve_scenario
+
+SCENARIO_HELP = "a scenario YAML file, or the name of a shipped one (see `cosim scenarios`), e.g. racetrack"
 
 
 def add_commands(sub) -> None:
+    """Add the framework's subcommands to the ``cosim`` parser's ``sub`` (argparse subparsers)."""
     p = sub.add_parser("run", help="run a scenario (or its sweep) and record it")
-    p.add_argument("scenario", type=Path, help="scenario YAML file")
+    p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scenario field by dotted path, e.g. components.camera.params.interval_s=0.1")
@@ -40,10 +45,13 @@ def add_commands(sub) -> None:
                    help="a sweep's run still going after S seconds of wall time is stopped and counted failed")
     p.set_defaults(func=cmd_run)
 
-    p = sub.add_parser("validate", help="check a scenario and print its wiring as a table")
-    p.add_argument("scenario", type=Path)
+    p = sub.add_parser("validate", help="check a scenario as a run would and print its wiring as a table")
+    p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("scenarios", help="list the scenarios the installed packages ship, to run by name")
+    p.set_defaults(func=cmd_scenarios)
 
     p = sub.add_parser("schema", help="print the JSON Schema of the scenario format (for editors)")
     p.set_defaults(func=cmd_schema)
@@ -57,11 +65,16 @@ def add_commands(sub) -> None:
                    help="serve rerun's web viewer instead of opening a window (no display needed; open the "
                         "address it prints in a browser, through an SSH tunnel from another machine)")
     p.add_argument("--port", type=int, default=9090, help="the web viewer's HTTP port with --web (default 9090)")
+    p.add_argument("--data-port", type=int, default=9876,
+                   help="with --web: the port the viewer in the browser reads the recording from (default 9876)")
+    p.add_argument("--bind", default="127.0.0.1", metavar="ADDRESS",
+                   help="with --web: the address both ports listen on (default 127.0.0.1, this machine only; "
+                        "0.0.0.0 serves every network the machine is on)")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
     p.add_argument("component", help="component name in the scenario")
-    p.add_argument("scenario", type=Path)
+    p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--run-id", required=True)
     p.add_argument("--connect", action="append", required=True, metavar="ENDPOINT",
                    help="zenoh endpoint of the scheduler, e.g. tcp/127.0.0.1:7447, and (repeated) of "
@@ -88,9 +101,11 @@ def add_commands(sub) -> None:
 
 
 def cmd_run(args) -> int:
+    """``cosim run``: run a scenario or its sweep; 1 when a sweep run failed, 130 when stopped."""
     from cosim.runtime.runner import RunRequest, run
     from cosim.scenario.schema import load_scenario
 
+    args.scenario = resolve_scenario(args.scenario)
     out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
     if args.realtime is not None and not args.realtime > 0:
         raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
@@ -124,6 +139,7 @@ def cmd_run(args) -> int:
 
 
 def add_jobs_argument(parser, what: str) -> None:
+    """Add ``--jobs N|auto`` to ``parser``; ``what`` says what runs that many at a time."""
     parser.add_argument("--jobs", default=None, metavar="N|auto",
                         help=f"{what} (auto: one per CPU this process may use; default 1)")
 
@@ -149,16 +165,23 @@ def _print_run(summary: dict, out: Path) -> None:
         if rt:
             print(f"real-time pacing x{rt['factor']:g}: {rt['missed']} of {rt['ticks'] + rt['missed']} ticks "
                   f"missed, lateness p99 {rt['lateness_ms']['p99']} ms (max {rt['lateness_ms']['max']} ms)")
-    print(f"recording: {out / 'recording.rrd' if 'sweep' not in summary else out / 'runs'}")
+    if "sweep" in summary:  # every run's folder (and recording) is listed in the table
+        print(f"table:     {out / 'summary.md'}")
+    else:
+        print(f"recording: {out / 'recording.rrd'}")
     print(f"summary:   {out / 'summary.json'}")
 
 
 def cmd_validate(args) -> int:
+    """``cosim validate``: check a scenario as a run would and print its wiring."""
+    from cosim.runtime.wiring import connection_table
+    from cosim.scenario.check import check_runs
     from cosim.scenario.schema import load_scenario
-    from cosim.runtime.wiring import build_wiring, connection_table
 
+    args.scenario = resolve_scenario(args.scenario)
     scenario = load_scenario(args.scenario, args.overrides)
-    print(connection_table(scenario, build_wiring(scenario)))
+    wiring = check_runs(scenario, args.scenario, args.overrides)  # what `cosim run` checks before it starts
+    print(connection_table(scenario, wiring))
     if scenario.sweep:
         from cosim.scenario.schema import sweep_overrides
 
@@ -166,7 +189,28 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def cmd_scenarios(args) -> int:
+    """``cosim scenarios``: the shipped scenarios, one line each with its description."""
+    from cosim.scenario.catalog import shipped_scenarios
+
+    found = shipped_scenarios()
+    if not found:
+        print("no installed package ships scenarios")
+        return 0
+    width = max(map(len, found)) + 2
+    for name, item in sorted(found.items()):
+        print(textwrap.fill(item.doc or "(no description)", width=110, initial_indent=f"{name:{width}s}",
+                            subsequent_indent=" " * width))
+    print(f"\nrun one by name: cosim run NAME (they are in {_common_folder(found)})")
+    return 0
+
+
+def _common_folder(found: dict) -> str:
+    return os.path.commonpath([str(item.path.parent) for item in found.values()])
+
+
 def cmd_schema(args) -> int:
+    """``cosim schema``: the scenario format's JSON Schema on stdout."""
     from cosim.scenario.schema import json_schema
 
     print(json.dumps(json_schema(), indent=2))
@@ -174,10 +218,14 @@ def cmd_schema(args) -> int:
 
 
 def cmd_plugins(args) -> int:
+    """``cosim plugins``: what the installed plugins register, by kind, each with its first sentence."""
+    from cosim.contract.params import IDEAL
     from cosim.contract.plugins import kinds, registry
 
     for kind in kinds():
         entries = registry(kind)
+        if kind == "profile":
+            entries.setdefault("ideal", IDEAL)
         print(f"{kind}s:")
         for name, obj in sorted(entries.items()):
             own_doc = None if isinstance(obj, (dict, list, tuple)) else getattr(obj, "__doc__", None)  # not dict's
@@ -189,6 +237,7 @@ def cmd_plugins(args) -> int:
 
 
 def cmd_replay(args) -> int:
+    """``cosim replay``: open a run's recording in the rerun viewer, or serve it to a browser (``--web``)."""
     rrd = args.run_dir / "recording.rrd" if args.run_dir.is_dir() else args.run_dir
     if not rrd.is_file():
         raise UserError(f"no recording at {rrd}")
@@ -199,9 +248,11 @@ def cmd_replay(args) -> int:
     if not Path(viewer).exists():
         raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
     if args.web:
-        print(f"serving {rrd} in rerun's web viewer on port {args.port}: open the http address below in a "
-              "browser (Ctrl-C stops)", flush=True)
-        return _call_viewer([viewer, "--serve-web", "--web-viewer-port", str(args.port), *files])
+        print(f"serving {rrd} in rerun's web viewer (Ctrl-C stops); open in a browser:\n"
+              f"  {web_viewer_url(args.bind, args.port, args.data_port)}", flush=True)
+        # rerun's own log lines name the viewer's bare address too, which opens its welcome page: warnings only
+        return _call_viewer([viewer, "--serve-web", "--bind", args.bind, "--web-viewer-port", str(args.port),
+                             "--port", str(args.data_port), *files], env={**os.environ, "RUST_LOG": "warn"})
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise UserError(f"no display to open the viewer on ($DISPLAY and $WAYLAND_DISPLAY are unset): "
                         f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
@@ -210,21 +261,32 @@ def cmd_replay(args) -> int:
     return _call_viewer([viewer, *files])
 
 
-def _call_viewer(command: list[str]) -> int:
+def web_viewer_url(bind: str, port: int, data_port: int) -> str:
+    """The one address that opens the recording in rerun's web viewer (the viewer's page, told where to
+    read the data from); a wildcard ``bind`` is reached at this machine's loopback."""
+    host = "127.0.0.1" if bind in ("0.0.0.0", "::", "") else bind
+    host = f"[{host}]" if ":" in host else host
+    data = quote(f"rerun+http://{host}:{data_port}/proxy", safe="")
+    return f"http://{host}:{port}/?url={data}"
+
+
+def _call_viewer(command: list[str], env: dict | None = None) -> int:
     """Run the viewer until it ends; Ctrl-C ends it (and is not an error)."""
     try:
-        return subprocess.call(command)
+        return subprocess.call(command, env=env)
     except KeyboardInterrupt:
         return 0
 
 
 def cmd_node(args) -> int:
+    """``cosim node``: serve one component of a scenario in this process until the run ends."""
     from cosim.runtime.bus import TlsFiles
     from cosim.runtime.fingerprint import Fingerprint
     from cosim.runtime.node import serve
-    from cosim.scenario.schema import load_scenario
     from cosim.runtime.wiring import build_wiring
+    from cosim.scenario.schema import load_scenario
 
+    args.scenario = resolve_scenario(args.scenario)
     scenario = load_scenario(args.scenario, args.overrides)
     if args.component not in scenario.components:
         raise UserError(f"no component {args.component!r} in {args.scenario} "
@@ -242,6 +304,7 @@ def cmd_node(args) -> int:
 
 
 def cmd_certs(args) -> int:
+    """``cosim certs``: a run's CA and one certificate per host of a hosts file."""
     from cosim.scale.certs import make_certificates
 
     if args.days < 1:

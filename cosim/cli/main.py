@@ -10,6 +10,7 @@ analyses, e.g. ``cosim diagnose``, ``cosim camera``).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from cosim.cli import commands
@@ -21,6 +22,7 @@ class CLIError(Exception):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``cosim`` parser: the framework's commands and those the installed plugins add."""
     parser = argparse.ArgumentParser(
         prog="cosim",
         description="Lockstep co-simulation over zenoh: run, sweep, record and replay scenarios; "
@@ -35,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``cosim`` command on ``argv``; its exit status (2 and one line for a user's error)."""
     try:
         parser = build_parser()
     except Exception as exc:  # a plugin that fails to load or register its commands
@@ -48,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("cosim: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the output went to a pager or `head` that has quit: not an error
+        sys.stdout = open(os.devnull, "w")
+        return 0
     except Exception as exc:  # one clear line for expected errors, see below
         if _is_user_error(exc):
             print(f"cosim {args.command}: error: {exc}", file=sys.stderr)

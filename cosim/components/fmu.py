@@ -83,21 +83,38 @@ class FmuComponent(Component):
     def artifacts(cls, params: Mapping[str, Any]) -> list:
         return [cls.fmu_file(params)]
 
-    # ------------------------------------------------------------ setup
-    def setup(self, params: Mapping[str, Any], rng: np.random.Generator) -> None:
-        fmu_path = self.fmu_file(params)
+    @classmethod
+    def model_description_file(cls, params: Mapping[str, Any]) -> Path:
+        """Where :meth:`validate_params` reads the FMU's variables: the FMU itself by default (a
+        subclass that builds its FMU may name its ``modelDescription.xml``, so checking builds nothing)."""
+        return cls.fmu_file(params)
+
+    @classmethod
+    def validate_params(cls, params: Mapping[str, Any]) -> None:
+        """Every parameter but the options names a settable FMU variable and has its type."""
+        cls._checked_values(params, cls.model_description_file(params))
+
+    @classmethod
+    def _checked_values(cls, params: Mapping[str, Any], source: Path):
+        """``(model description, {name: variable}, typed values)`` of ``params`` on the FMU's variables."""
         params = {k: v for k, v in params.items() if k not in OPTIONS}
-        md = read_model_description(str(fmu_path))
+        md = read_model_description(str(source))
         variables = {v.name: v for v in md.modelVariables}
         settable = {n: v for n, v in variables.items() if v.causality == "parameter"}
         unknown = sorted(set(params) - set(settable))
         if unknown:
-            raise ComponentError(f"unknown parameter(s) {', '.join(unknown)}; valid: {', '.join([*OPTIONS, *settable])}")
-        missing = [n for names in (*self.input_variables.values(), *self.output_variables.values())
+            raise ComponentError(f"unknown parameter(s) {', '.join(unknown)}; "
+                                 f"valid: {', '.join([*OPTIONS, *settable])}")
+        missing = [n for names in (*cls.input_variables.values(), *cls.output_variables.values())
                    for n in names if n not in variables]
         if missing:
-            raise ComponentError(f"{fmu_path} has no variable(s) {', '.join(missing)}")
-        values = _typed_values(params, settable)
+            raise ComponentError(f"{source} has no variable(s) {', '.join(missing)}")
+        return md, variables, _typed_values(params, settable)
+
+    # ------------------------------------------------------------ setup
+    def setup(self, params: Mapping[str, Any], rng: np.random.Generator) -> None:
+        fmu_path = self.fmu_file(params)
+        md, variables, values = self._checked_values(params, fmu_path)
 
         self._unzip_dir = extract(str(fmu_path))
         self._fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._unzip_dir,

@@ -9,12 +9,12 @@ global RNG, so a run is reproducible from its scenario and seed.
 
 from __future__ import annotations
 
-from cosim.contract.errors import UserError
-
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
+
+from cosim.contract.errors import UserError
 
 
 class ComponentError(UserError):
@@ -86,11 +86,20 @@ class Component:
         from the scenario seed and the component name.
         """
 
+    #: The parameters :func:`cosim.contract.params.read_params` reads in ``setup`` (``{name: Param}``):
+    #: set it and the default :meth:`validate_params` checks names, types and bounds with them.
+    params_spec: Mapping[str, Any] | None = None
+
     @classmethod
     def validate_params(cls, params: Mapping[str, Any]) -> None:
         """Check the scenario's ``params`` (plus ``dt``) cheaply, with no side effect (nothing
         trained, nothing written, no hardware opened); raise :class:`ComponentError`. Called by
-        ``cosim validate`` and before any component is set up, so bad input fails before a run starts."""
+        ``cosim validate`` and before any component is set up, so bad input fails before a run starts.
+        Default: :attr:`params_spec` read as ``setup`` reads it, when set."""
+        if cls.params_spec is not None:
+            from cosim.contract.params import read_params
+
+            read_params(params, cls.params_spec)
 
     @classmethod
     def prepare(cls, params: Mapping[str, Any]) -> None:

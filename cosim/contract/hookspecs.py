@@ -70,7 +70,8 @@ def cosim_register_profiles(register):
 
     Call ``register(name, values)`` where ``values`` is ``{plugin name: {param: value}}``:
     every component of a scenario using that plugin gets those parameters (``ideal``, the
-    parameters as the scenario gives them, needs no registration).
+    parameters as the scenario gives them, needs no registration). Give ``values`` as a
+    :class:`cosim.contract.params.Profile` to say what the profile is (``cosim plugins`` lists it).
     """
 
 
@@ -81,4 +82,13 @@ def cosim_register_views(register):
     Call ``register(name, view)`` with an object following
     :class:`cosim.record.views.RunView`: the roles it reads (with their default
     ports), its rerun views and drawing, and its files written as the run goes.
+    """
+
+
+@hookspec
+def cosim_register_scenarios(register):
+    """Provide scenario files shipped inside a package, so they run by name (``cosim run NAME``).
+
+    Call :func:`cosim.scenario.catalog.register_folder` ``(register, folder)`` with the
+    package folder holding them, or ``register(name, ShippedScenario(path))`` for each.
     """

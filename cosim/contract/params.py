@@ -18,10 +18,25 @@ CONTEXT_KEYS = ("dt", "path", "run_dir", "recording_id", "name")
 
 @dataclass(frozen=True)
 class Param:
+    """One component parameter: its default (whose type the value must have), what it is, and bounds for a number."""
     default: Any
     doc: str = ""
     lo: float | None = None
     hi: float | None = None
+
+
+class Profile(dict):
+    """A profile's values, ``{plugin name: {param: value}}``, with ``doc``: what it stands for (one
+    sentence first, as ``cosim plugins`` lists it)."""
+
+    def __init__(self, values: Mapping[str, Mapping[str, Any]], doc: str = ""):
+        super().__init__(values)
+        self.doc = doc
+
+
+#: The profile every scenario runs on unless it names another: no values of its own.
+IDEAL = Profile({}, "every component with the parameters its scenario gives, none changed "
+                    "(the default; an emulation without the rig's imperfections)")
 
 
 def read_params(given: Mapping[str, Any], spec: Mapping[str, Param]) -> dict[str, Any]:

@@ -1,7 +1,7 @@
 """The one plugin manager: every plugin, the project's own domain included, registered alike.
 
 Kinds of things plugins provide (see :mod:`cosim.contract.hookspecs`): components,
-paths, profiles, recording views, and the kinds a domain adds with hooks of its
+paths, profiles, recording views, shipped scenarios, and the kinds a domain adds with hooks of its
 own. ``registry(kind)`` returns ``{name: object}``; ``command_groups()`` the CLI
 commands plugins add.
 Plugins come from the ``cosim`` entry-point group of installed packages, or from a
@@ -23,7 +23,7 @@ from cosim.contract.errors import UserError
 #: The kinds of things the framework's own hooks provide, in the order ``cosim plugins`` lists
 #: them; kind ``K`` is provided by the hook ``cosim_register_Ks``, and a domain adds kinds with
 #: hooks of its own named so (see ``cosim_addhooks``).
-KINDS = ("component", "path", "profile", "view")
+KINDS = ("component", "path", "profile", "view", "scenario")
 
 #: The module name of a plugin file loaded by :func:`load_plugin_file` starts so.
 USER_PLUGIN_PREFIX = "cosim_user_plugin_"
@@ -82,6 +82,7 @@ def registry(kind: str) -> dict[str, Any]:
 
 
 def hook_name(kind: str) -> str:
+    """The name of the hook that provides things of ``kind``: ``cosim_register_<kind>s``."""
     return f"cosim_register_{kind}s"
 
 

@@ -30,16 +30,17 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.scenario.paths import distance_to_path
-from cosim.scenario.schema import Scenario
 from cosim.runtime.portcache import port_slots
 from cosim.runtime.wiring import Wiring
+from cosim.scenario.paths import distance_to_path
+from cosim.scenario.schema import Scenario
 
 #: longest stretch of wall time, and of simulated time [s], not yet written out
 FLUSH_EVERY_S = 1.0
 
 
 class TraceRecorder:
+    """Keeps every component's outputs at every tick and writes ``trace.npz`` and the views' files."""
     def __init__(self, scenario: Scenario, wiring: Wiring, out_dir: Path, path=None):
         self.scenario, self.wiring, self.out_dir, self.path = scenario, wiring, Path(out_dir), path
         n = scenario.n_steps

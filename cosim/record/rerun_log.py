@@ -100,12 +100,14 @@ def log_path(rec: rr.RecordingStream, path, t_s: np.ndarray, ticks: np.ndarray, 
 
 
 def log_points(rec, entity: str, t_s: np.ndarray, positions_m: np.ndarray) -> None:
+    """Send the finite rows of ``positions_m`` (n, 3) [m] at times ``t_s`` (n,) [s] as 3D points."""
     keep = np.all(np.isfinite(positions_m), axis=1)
     if keep.any():
         rec.send_columns(entity, indexes=_time(t_s[keep]), columns=rr.Points3D.columns(positions=positions_m[keep]))
 
 
 def log_arrows(rec, entity: str, t_s, origins_m, vectors_m) -> None:
+    """Send arrows from ``origins_m`` along ``vectors_m`` (both (n, 3) [m]) at ``t_s`` (n,) [s], finite rows only."""
     keep = np.all(np.isfinite(origins_m), axis=1) & np.all(np.isfinite(vectors_m), axis=1)
     if keep.any():
         rec.send_columns(entity, indexes=_time(t_s[keep]),
@@ -113,6 +115,7 @@ def log_arrows(rec, entity: str, t_s, origins_m, vectors_m) -> None:
 
 
 def log_scalars(rec, entity: str, t_s: np.ndarray, values: np.ndarray) -> None:
+    """Send the finite values of ``values`` (n,) at times ``t_s`` (n,) [s] as a time series."""
     keep = np.isfinite(values)
     if keep.any():
         rec.send_columns(entity, indexes=_time(t_s[keep]), columns=rr.Scalars.columns(scalars=values[keep]))

@@ -104,6 +104,7 @@ ROW_KEYS = ("status", "dir", "error", "host", "code", "artifacts")
 
 
 def label_keys(rows: list[dict]) -> list[str]:
+    """The keys of a sweep's rows that label a run (not its metrics nor bookkeeping), in row order."""
     return [k for k in rows[0] if k not in (*METRICS, *ROW_KEYS, "seeds")] if rows else []
 
 
@@ -139,6 +140,7 @@ def _pm(d: dict | None) -> str:
 
 
 def numeric_axes(rows: list[dict]) -> list[str]:
+    """The labels whose values are numbers and differ between rows: the axes a plot can use."""
     return [k for k in label_keys(rows) if all(isinstance(r[k], (int, float)) for r in rows)
             and len({r[k] for r in rows}) > 1]
 

@@ -60,6 +60,7 @@ class RunView:
 
 
 def registered_views() -> dict[str, RunView]:
+    """Every recording view the installed plugins register, by name."""
     from cosim.contract.plugins import registry
 
     return registry("view")

@@ -148,10 +148,12 @@ def publisher(session: zenoh.Session, key: str) -> zenoh.Publisher:
 
 
 def outputs_key(run_id: str, component: str) -> str:
+    """The zenoh key a component publishes its outputs on."""
     return f"{ROOT}/{run_id}/{component}/outputs"
 
 
 def alive_key(run_id: str, component: str = "*") -> str:
+    """The zenoh liveliness key of a component's node (``*``: every node of the run)."""
     return f"{ROOT}/{run_id}/alive/{component}"
 
 
@@ -161,10 +163,12 @@ def scheduler_alive_key(run_id: str) -> str:
 
 
 def ctl_key(run_id: str, component: str, what: str) -> str:
+    """The zenoh key of a control message ``what`` to a component."""
     return f"{ROOT}/{run_id}/ctl/{component}/{what}"
 
 
 def tick_key(run_id: str) -> str:
+    """The zenoh key the scheduler grants ticks on."""
     return f"{ROOT}/{run_id}/ctl/tick"
 
 
@@ -177,6 +181,7 @@ def encode_tick(tick: int) -> bytes:
 
 
 def decode_tick(attachment: bytes) -> int:
+    """The tick stamped in a message's attachment."""
     return _TICK.unpack_from(attachment)[0]
 
 
@@ -192,8 +197,10 @@ def encode_reply(header: dict, values: list[np.ndarray] = ()) -> tuple[bytes, by
 
 
 def encode_json(obj) -> bytes:
+    """``obj`` as compact JSON bytes."""
     return json.dumps(obj, separators=(",", ":")).encode()
 
 
 def decode_json(payload: bytes):
+    """The object a JSON payload holds."""
     return json.loads(bytes(payload))

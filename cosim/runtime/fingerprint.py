@@ -34,6 +34,7 @@ DIGEST_CHARS = 16
 
 @dataclass(frozen=True)
 class Fingerprint:
+    """What a run's result depends on: digests of the scenario, of the code and of the artefacts."""
     scenario: str
     code: str
     artifacts: str
@@ -62,6 +63,7 @@ def _digest(h: "hashlib._Hash") -> str:
 
 
 def scenario_digest(scenario: Scenario) -> str:
+    """Digest of the scenario as validated (every field, defaults included)."""
     text = json.dumps(scenario.model_dump(mode="json", by_alias=True), sort_keys=True, separators=(",", ":"))
     return _digest(hashlib.sha256(text.encode()))
 
@@ -91,7 +93,8 @@ def code_digest(plugin_files: list[Path] = ()) -> str:
         if not (pm.get_name(plugin) or "").startswith(USER_PLUGIN_PREFIX):
             files.update(_source_files(plugin))
     for plugin_file in plugin_files:
-        files.update((f"scenario plugin {Path(plugin_file).name}: {f.name}", f) for f in plugin_file_sources(plugin_file))
+        files.update((f"scenario plugin {Path(plugin_file).name}: {f.name}", f)
+                     for f in plugin_file_sources(plugin_file))
     return _cached_code_digest(tuple(sorted((name, str(path)) for name, path in files.items())))
 
 
@@ -118,6 +121,7 @@ def artifact_files(scenario: Scenario) -> list[Path]:
 
 
 def artifacts_digest(scenario: Scenario) -> str:
+    """Digest of the files besides code the scenario's components depend on (an FMU, model files)."""
     h = hashlib.sha256()
     for file in artifact_files(scenario):
         h.update(file.name.encode() + b"\0" + _file_digest(file).encode())
@@ -149,4 +153,5 @@ def differences(mine: Fingerprint, theirs: Fingerprint) -> list[str]:
 
 
 def host_name() -> str:
+    """This machine's host name."""
     return socket.gethostname()

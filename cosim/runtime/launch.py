@@ -27,8 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cosim.runtime.fingerprint import Fingerprint, differences
-from cosim.scale.hosts import HostsPlan
 from cosim.runtime.scheduler import RemoteGroup, RunError, StopRequest
+from cosim.scale.hosts import HostsPlan
 
 #: How long nodes this machine starts itself have to be ready.
 NODE_START_TIMEOUT_S = 120.0
@@ -132,8 +132,8 @@ def start_nodes(commands: list[NodeCommand], group: RemoteGroup, expected: Finge
                 raise RunError(name, f"its node process{_on(hosts[name])} exited with status "
                                      f"{procs[name].returncode} before it was ready")
         if stop is not None and stop.event.is_set():
-            raise RunError(sorted(pending)[0], f"{stop.reason} while waiting for its node{_on(hosts[sorted(pending)[0]])} "
-                                               "to join")
+            first = sorted(pending)[0]
+            raise RunError(first, f"{stop.reason} while waiting for its node{_on(hosts[first])} to join")
         if time.monotonic() > deadline:
             waited = wait_s if manual else NODE_START_TIMEOUT_S
             raise RunError(sorted(pending)[0], f"its node{_on(hosts[sorted(pending)[0]])} was not ready within "

@@ -38,15 +38,15 @@ from pathlib import Path
 
 import zenoh
 
-from cosim.runtime import bus
 from cosim.contract.component import ComponentFault
+from cosim.runtime import bus
 from cosim.runtime.fingerprint import Fingerprint, differences, fingerprint
 from cosim.runtime.placement import parse_cpu_list, pin_this_process
 from cosim.runtime.portcache import PortStore, expected_stamp
-from cosim.scenario.schema import Scenario
 from cosim.runtime.scheduler import REPLY_BATCH, WINDOW
 from cosim.runtime.stepper import Stepper, setup_component
 from cosim.runtime.wiring import Wiring
+from cosim.scenario.schema import Scenario
 
 IDLE_TIMEOUT_S = 120.0
 #: How long a node waits for its route to the scheduler before it replies anyway.

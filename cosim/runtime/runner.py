@@ -29,21 +29,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim.record.recorder import TraceRecorder
+from cosim.record.summary import run_figures
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
-from cosim.scale.hosts import load_hosts
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
-from cosim.scenario.paths import make_path
 from cosim.runtime.placement import node_cpus
 from cosim.runtime.portcache import PortCache, PortStore
-from cosim.record.recorder import TraceRecorder
-from cosim.scenario.schema import Scenario, load_scenario
-from cosim.runtime.scheduler import (WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest,
-                             with_close_faults)
+from cosim.runtime.scheduler import (
+    WINDOW,
+    LocalGroup,
+    RemoteGroup,
+    RunError,
+    RunFault,
+    Scheduler,
+    StopRequest,
+    with_close_faults,
+)
 from cosim.runtime.stepper import Stepper, setup_component
-from cosim.record.summary import run_figures
 from cosim.runtime.wiring import build_wiring
-
+from cosim.scale.hosts import load_hosts
+from cosim.scenario.paths import make_path
+from cosim.scenario.schema import Scenario, load_scenario
 
 
 @dataclass
@@ -99,8 +106,13 @@ def stop_on_signals():
 
 
 def run(request: RunRequest) -> dict[str, Any]:
-    """Run the scenario, or every combination of its sweep; returns the summary written."""
+    """Run the scenario, or every combination of its sweep; returns the summary written. Every run is
+    checked first as ``cosim validate`` checks it (fields, plugins, parameters, wiring): a scenario
+    that does not validate writes nothing."""
     scenario = load_scenario(request.scenario_file, request.overrides)
+    from cosim.scenario.check import check_runs
+
+    check_runs(scenario, request.scenario_file, request.overrides)
     with stop_on_signals() as stop:
         if not scenario.sweep:
             return run_one(scenario, request, stop)
@@ -118,10 +130,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     """
     stop = stop or StopRequest()
     cpus = node_cpus(request.node_cpus) if request.processes else None
-    out = Path(request.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     wiring = build_wiring(scenario)
     path = make_path(scenario.path.plugin, scenario.path.params) if scenario.path else None
+    out = Path(request.out_dir)  # made only once the scenario has validated
+    out.mkdir(parents=True, exist_ok=True)
     run_id = secrets.token_hex(4)
     recorder = TraceRecorder(scenario, wiring, out, path)
     recorder.open()
@@ -269,5 +281,6 @@ class _progress_bar:
 
 
 def write_json(path: Path, obj) -> None:
+    """Write ``obj`` to ``path`` as indented JSON, making its folder first."""
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(obj, indent=2) + "\n")

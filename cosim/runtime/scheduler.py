@@ -35,14 +35,14 @@ from typing import Callable, Protocol
 import numpy as np
 import zenoh
 
-from cosim.runtime import bus
 from cosim.contract.component import ComponentFault
 from cosim.contract.errors import UserError
+from cosim.runtime import bus
 from cosim.runtime.pacing import Pacer
 from cosim.runtime.portcache import PortStore, PortTimeout, expected_stamp
-from cosim.scenario.schema import Scenario
 from cosim.runtime.stepper import Stepper
 from cosim.runtime.wiring import Wiring
+from cosim.scenario.schema import Scenario
 
 
 class RunError(UserError):

@@ -14,12 +14,12 @@ from typing import Any
 import numpy as np
 import zenoh
 
-from cosim.runtime import bus
 from cosim.contract.component import Component, ComponentError, ComponentFault
-from cosim.scenario.paths import make_path
+from cosim.runtime import bus
 from cosim.runtime.portcache import PortStore, PortTimeout, port_slots
-from cosim.scenario.schema import Scenario
 from cosim.runtime.wiring import Wiring
+from cosim.scenario.paths import make_path
+from cosim.scenario.schema import Scenario
 
 
 def component_rng(seed: int, name: str) -> np.random.Generator:

@@ -23,6 +23,7 @@ class WiringError(UserError):
 
 @dataclass(frozen=True)
 class Edge:
+    """One wire: ``src.src_port`` feeds ``dst.dst_port``, ``delay`` (0 or 1) ticks late."""
     src: str
     src_port: str
     dst: str
@@ -35,6 +36,7 @@ class Edge:
 
 @dataclass
 class Wiring:
+    """A scenario's components wired: their classes, ports, edges, step order and update periods."""
     classes: dict[str, type]
     inputs: dict[str, tuple[Port, ...]]
     outputs: dict[str, tuple[Port, ...]]
@@ -51,6 +53,7 @@ class Wiring:
 
 
 def build_wiring(scenario: Scenario) -> Wiring:
+    """Wire the scenario's components: ports checked by name, shape and unit, parameters validated, step order."""
     classes = {name: lookup("component", spec.plugin) for name, spec in scenario.components.items()}
     inputs = {name: tuple(cls.inputs) for name, cls in classes.items()}
     outputs = {name: tuple(cls.outputs) for name, cls in classes.items()}

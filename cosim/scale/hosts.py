@@ -38,8 +38,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from cosim.runtime.bus import TlsFiles
 from cosim.contract.errors import UserError
+from cosim.runtime.bus import TlsFiles
 from cosim.scenario.schema import Scenario, error_lines, line_of, load_document
 
 ENDPOINT = re.compile(r"^(tcp|tls)/(\[[^\]]+\]|[^:/\s\[\]]+):(\d{1,5})$")
@@ -54,10 +54,12 @@ class _Strict(BaseModel):
 
 
 class TlsSpec(_Strict):
+    """The hosts file's ``tls``: the run's CA certificate."""
     ca: str = Field(description="the run's CA certificate (PEM), relative to the hosts file")
 
 
 class HostSpec(_Strict):
+    """One machine of a hosts file: how to reach it and start its nodes there."""
     address: str = Field(description="IP address or DNS name the host is reached at (its certificate names it)")
     launch: Literal["local", "ssh", "manual"] | None = Field(None, description="how its nodes start")
     ssh: str | None = Field(None, description="ssh destination (default: the address)")
@@ -68,17 +70,20 @@ class HostSpec(_Strict):
 
 
 class PlacementSpec(_Strict):
+    """Where one component runs: its host, endpoint and CPUs."""
     host: str
     listen: str | None = Field(None, description="endpoint the node listens on, e.g. tls/10.0.0.2:7450")
     cpus: str | None = Field(None, description="CPUs the node runs on there, e.g. 1 or 0,2-3")
 
 
 class SchedulerSpec(_Strict):
+    """Where the scheduler runs and listens."""
     host: str
     listen: str | None = None
 
 
 class HostsFile(_Strict):
+    """A hosts file (HOSTS.yaml): the scheduler, the machines and the components placed on them."""
     launch: Literal["ssh", "manual"] = "manual"
     wait_s: float = Field(600.0, gt=0)
     tls: TlsSpec | None = None
@@ -104,6 +109,7 @@ class NodePlace:
 
 @dataclass(frozen=True)
 class HostsPlan:
+    """A hosts file resolved for one run: the scheduler's endpoint and TLS files, each node's place."""
     path: Path
     scheduler_listen: str
     scheduler_tls: TlsFiles | None

@@ -60,6 +60,7 @@ class Job:
 
 
 def client_env() -> tuple[tuple[str, str], ...]:
+    """The environment variables a run's workers need from this process (:data:`ENV_KEYS` that are set)."""
     return tuple((k, os.environ[k]) for k in ENV_KEYS if k in os.environ)
 
 
@@ -144,8 +145,8 @@ def _run(job: Job, scenario_file: Path, run_dir: Path) -> tuple[dict, dict | Non
     """The run's summary (as written in ``run_dir``) and the fingerprint of what made it."""
     from cosim.runtime.fingerprint import fingerprint
     from cosim.runtime.runner import RunRequest, run_one, stop_on_signals, write_json
-    from cosim.scenario.schema import load_scenario
     from cosim.runtime.scheduler import RunError
+    from cosim.scenario.schema import load_scenario
 
     made_by = None
     with stop_on_signals() as stop:

@@ -28,10 +28,18 @@ from concurrent.futures import FIRST_COMPLETED, Future, wait
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
+from cosim.record.summary import (
+    METRICS,
+    largest_below,
+    monotonic_within_spread,
+    numeric_axes,
+    pool_replicates,
+    pooled_table,
+    sweep_plot,
+    sweep_table,
+)
 from cosim.scale.jobs import Job, client_env, failed_summary, run_job, scenario_sources, unpack
 from cosim.scenario.schema import Scenario, load_scenario, sweep_overrides
-from cosim.record.summary import (METRICS, largest_below, monotonic_within_spread, numeric_axes, pool_replicates,
-                           pooled_table, sweep_plot, sweep_table)
 
 #: How long past its own timeout a job may take to stop and write its outputs before it is given up.
 GIVE_UP_GRACE_S = 30.0

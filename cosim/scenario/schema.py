@@ -8,6 +8,7 @@ the same dotted paths into the YAML document.
 
 from __future__ import annotations
 
+import difflib
 import functools
 import itertools
 import json
@@ -18,8 +19,8 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from cosim.runtime.bus import RESERVED_NAMES
 from cosim.contract.errors import UserError
+from cosim.runtime.bus import RESERVED_NAMES
 
 
 class ScenarioError(UserError):
@@ -46,6 +47,7 @@ class InputSpec(_Strict):
 
 
 class ComponentSpec(_Strict):
+    """One component of a scenario: its plugin, parameters, input wires, period and timeout."""
     plugin: str = Field(description="registered component name, see `cosim plugins`")
     params: dict[str, Any] = Field(default_factory=dict)
     inputs: dict[str, InputSpec] = Field(default_factory=dict)
@@ -61,6 +63,7 @@ class ComponentSpec(_Strict):
 
 
 class PathSpec(_Strict):
+    """The scenario's reference path: a registered path plugin and its parameters."""
     plugin: str
     params: dict[str, Any] = Field(default_factory=dict)
 
@@ -117,6 +120,7 @@ class ReportSpec(_Strict):
 
 
 class Scenario(_Strict):
+    """A validated scenario (see the module docstring and ``cosim schema``)."""
     name: str
     description: str = ""
     duration_s: float = Field(gt=0)
@@ -211,13 +215,30 @@ def load_scenario(path: str | Path, overrides: list[str] | tuple[str, ...] = ())
     """Load, apply ``key=value`` overrides, validate. Errors name field and line."""
     data, node = load_document(path)
     parsed = [parse_override(item) for item in overrides]
+    check_override_components(data, parsed, overrides)
     for key, value in parsed:
         set_dotted(data, key, value)
     # its plugin files first: they may register the profile, the recorded roles, the components it names
     files = data.get("plugins")
     load_scenario_plugins(files if isinstance(files, list) else [], Path(path).parent)
     apply_profile(data, data.get("profile", "ideal"), source=str(path), explicit=_explicit_params(parsed))
-    return validate(data, source=str(path), node=node)
+    return validate(data, source=str(path), node=node, overrides=dict(zip((k for k, _ in parsed), overrides)))
+
+
+def check_override_components(data: dict, parsed: list[tuple[str, Any]], items) -> None:
+    """An override reaching into a component the scenario does not have (``components.camra.params.x``)
+    is a typo in the flag: say so, naming the flag, rather than let the new half-component fail
+    validation as if the file were wrong. Setting a whole new component (``components.NAME={...}``)
+    stays allowed."""
+    have = data.get("components") if isinstance(data.get("components"), dict) else {}
+    added = {key.split(".")[1] for key, _ in parsed if key.count(".") == 1 and key.startswith("components.")}
+    for (key, _), item in zip(parsed, items):
+        parts = key.split(".")
+        if len(parts) > 2 and parts[0] == "components" and parts[1] not in have and parts[1] not in added:
+            close = difflib.get_close_matches(parts[1], list(have), n=1)
+            hint = f"; did you mean {close[0]}?" if close else ""
+            raise ScenarioError(f"--set {item}: no component {parts[1]!r} in the scenario "
+                                f"(have: {', '.join(have) or 'none'}){hint}")
 
 
 def _explicit_params(parsed: list[tuple[str, Any]]) -> dict[str, set[str]]:
@@ -259,11 +280,12 @@ def apply_profile(data: dict, name: Any, source: str = "<scenario>",
 def profile_values(name: Any, source: str = "<scenario>") -> dict:
     """The values profile ``name`` sets, ``{plugin name: {param: value}}`` (``ideal``, unless a plugin
     registers it: none); an unknown profile raises :class:`ScenarioError` naming ``source``."""
+    from cosim.contract.params import IDEAL
     from cosim.contract.plugins import registry
 
     profiles = registry("profile")
     if name == "ideal" and name not in profiles:
-        return {}
+        return IDEAL
     if name not in profiles:
         raise ScenarioError(f"{source}: profile {name!r} unknown; known: {', '.join(['ideal', *sorted(profiles)])}")
     return profiles[name]
@@ -281,21 +303,31 @@ def load_scenario_plugins(files: list, base_dir: Path) -> None:
         load_plugin_file(file)
 
 
-def validate(data: dict, source: str = "<scenario>", node: YamlDocument | yaml.Node | None = None) -> Scenario:
+def validate(data: dict, source: str = "<scenario>", node: YamlDocument | yaml.Node | None = None,
+             overrides: dict[str, str] | None = None) -> Scenario:
+    """The validated scenario; errors name each field and its YAML line, or the ``--set`` flag that
+    wrote it (``overrides``: ``{dotted key: the flag's KEY=VALUE}``)."""
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(error_lines(exc, node))) from None
+        lines = error_lines(exc, node, overrides)
+        if lines and all("(--set " in line for line in lines):
+            raise ScenarioError(f"invalid --set for {source}\n" + "\n".join(lines)) from None
+        raise ScenarioError(f"{source}: invalid scenario\n" + "\n".join(lines)) from None
 
 
-def error_lines(exc: ValidationError, node: YamlDocument | yaml.Node | None) -> list[str]:
-    """One line per error of a pydantic validation: the field's dotted path, its YAML line, what is wrong."""
+def error_lines(exc: ValidationError, node: YamlDocument | yaml.Node | None,
+                overrides: dict[str, str] | None = None) -> list[str]:
+    """One line per error of a pydantic validation: the field's dotted path, its YAML line (or the
+    ``--set`` flag that set it), what is wrong."""
     lines = []
     for err in exc.errors():
         loc = [str(p) for p in err["loc"]]
         field = ".".join(loc) or "(top level)"
-        line = line_of(node, err["loc"])
-        where = f" (line {line})" if line else ""
+        flag = next((item for key, item in (overrides or {}).items()
+                     if field == key or field.startswith(key + ".")), None)
+        line = None if flag else line_of(node, err["loc"])
+        where = f" (--set {flag})" if flag else f" (line {line})" if line else ""
         msg = "unknown field" if err["type"] == "extra_forbidden" else err["msg"]
         lines.append(f"  {field}{where}: {msg}")
     return lines
@@ -327,6 +359,7 @@ def line_of(node: YamlDocument | yaml.Node | None, loc) -> int | None:
 
 
 def parse_override(item: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` (``--set``) as ``(dotted key, value)``, the value read as YAML."""
     if "=" not in item:
         raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.camera.params.interval_s=0.1")
     key, raw = item.split("=", 1)

@@ -38,6 +38,7 @@ class CalibrationReport:
 
 
 def read_grey(path: Path) -> np.ndarray:
+    """An image file as 8-bit grey levels (h, w); a missing or unreadable file raises :class:`UserError`."""
     if not Path(path).is_file():
         raise UserError(f"image {path} does not exist")
     image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)

@@ -8,6 +8,7 @@ from cosim_plugins.camera.calibration import VIEWS
 
 
 def add_commands(sub) -> None:
+    """Add ``cosim camera`` and its subcommands to the ``cosim`` parser's ``sub``."""
     camera = sub.add_parser("camera", help="the lab's cameras: calibration")
     camera_sub = camera.add_subparsers(dest="camera_command", metavar="SUBCOMMAND")
     camera_sub.required = True
@@ -28,6 +29,7 @@ def add_commands(sub) -> None:
 
 
 def cmd_calibrate(args) -> int:
+    """``cosim camera calibrate``: one camera's calibration from checkerboard images, into a file."""
     from cosim_plugins.camera.board import load_target
     from cosim_plugins.camera.calibrate import calibrate
     from cosim_plugins.camera.calibration import update_calibration

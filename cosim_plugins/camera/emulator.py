@@ -43,13 +43,21 @@ class CameraEmulator(Component):
     inputs = (Port("position", (3,), "m", "true swimmer position"),)
     outputs = (Port("position", (3,), "m", "measured position; NaN when no frame arrives this step"),)
 
-    def setup(self, params, rng):
-        self.p = read_params(params, PARAMS)
-        dt = params["dt"]
-        self.interval = whole_ticks(self.p["interval_s"], dt, "interval_s")
-        if self.interval < 1:
+    @classmethod
+    def validate_params(cls, params):
+        cls._read(params)
+
+    @staticmethod
+    def _read(params) -> tuple[dict, int, int]:
+        """The parameters, the frame interval and the latency in steps; raises :class:`ComponentError`."""
+        p = read_params(params, PARAMS)
+        interval = whole_ticks(p["interval_s"], params["dt"], "interval_s")
+        if interval < 1:
             raise ComponentError("interval_s must be at least one step")
-        self.latency = whole_ticks(self.p["latency_s"], dt, "latency_s")
+        return p, interval, whole_ticks(p["latency_s"], params["dt"], "latency_s")
+
+    def setup(self, params, rng):
+        self.p, self.interval, self.latency = self._read(params)
         self.rng = rng
         self.pixel_m = self.p["pixel_mm"] * 1e-3
         self.noise_sd_m = self.p["noise_px"] * self.pixel_m

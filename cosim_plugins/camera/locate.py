@@ -35,6 +35,7 @@ FOUND, LOST, REJECTED = 0, 1, 2
 
 @dataclass(frozen=True)
 class PairParams:
+    """How the two views' detections are paired and gated: pixel gate, tank size [mm], jump and speed limits."""
     gate_px: float = 2.0
     tank_mm: float = 75.0  # half-width of the tank: points beyond are reflections
     jump_mm: float = 2.0

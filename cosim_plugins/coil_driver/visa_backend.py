@@ -170,4 +170,5 @@ class KepcoSupplies:
         try:
             return self.supplies[i].query(command).strip()
         except Exception as exc:  # a timeout: the supply did not answer
-            raise BackendFault(Fault("supply_error", f"supply {self.label(i)}: {command!r} got no answer: {exc}")) from exc
+            raise BackendFault(Fault("supply_error",
+                                     f"supply {self.label(i)}: {command!r} got no answer: {exc}")) from exc

@@ -1,9 +1,9 @@
 """Controller plugins: pure pursuit reference + PI (MRAC and MPC follow the same contract)."""
 
 from cosim import hookimpl
-from cosim_plugins.controllers.pi import PIController
 from cosim_plugins.controllers.mpc import MPCController
 from cosim_plugins.controllers.mrac import MRACController
+from cosim_plugins.controllers.pi import PIController
 
 
 @hookimpl

@@ -34,6 +34,8 @@ PARAMS = {
 class PIController(PathController):
     """Pure pursuit (look-ahead 9 mm) + PI on the cross-track error, 3D."""
 
+    params_spec = PARAMS
+
     def setup(self, params, rng):
         p = read_params(params, PARAMS)
         self.dt = params["dt"]

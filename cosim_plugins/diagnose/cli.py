@@ -49,6 +49,7 @@ def _progress(message: str) -> None:
 
 
 def cmd_diagnose(args) -> int:
+    """``cosim diagnose``: which physical effects the model misses; writes the report folder."""
     from cosim_plugins.diagnose.pipeline import Settings, run
     from cosim_plugins.diagnose.report import write_outputs
 
@@ -141,7 +142,8 @@ def _stepwise_lines(r: dict, key: str) -> list[str]:
     if exp:
         lines.append(f"experiment: {exp['kind']} for {exp['duration_s']:g} s separates "
                      f"{' / '.join(exp['members'])} by {_num(exp['separation_mm'])} mm"
-                     + (f" ({exp['separation_over_floor']:.1f}x the noise floor)" if exp["separation_over_floor"] else ""))
+                     + (f" ({exp['separation_over_floor']:.1f}x the noise floor)"
+                        if exp["separation_over_floor"] else ""))
     return lines
 
 

@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim_plugins.identify.effect import Effect, Param
 from cosim_plugins.diagnose.verdict import BLOCK_S, MIN_T, paired_t
+from cosim_plugins.identify.effect import Effect, Param
 
 AXES = "xyz"
 WALL_MM = 75.0  # the tank's half size: walls at +-75 mm
@@ -185,7 +185,8 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None) -> dict:
     n_sel, err_sel, xi = min((p for p in path if p[1] <= enough), key=lambda p: (p[0], p[1]))
     eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]
     t = paired_t({"valid": np.ones(len(test_win), bool), "err": r_te.reshape(len(test_win), -1)},
-                 {"valid": np.ones(len(test_win), bool), "err": (r_te - J_te @ xi - H_te @ eta).reshape(len(test_win), -1)},
+                 {"valid": np.ones(len(test_win), bool),
+                  "err": (r_te - J_te @ xi - H_te @ eta).reshape(len(test_win), -1)},
                  test_win, max(1, int(round(BLOCK_S / ttr.dt_s))))
     say(f"discover: {n_sel} terms chosen on held-out windows (linearised rms {base_err:.4f} -> {err_sel:.4f} mm, "
         f"t = {t:.1f})")

@@ -34,19 +34,19 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from cosim_plugins.raw_log import read_logs
 from cosim.contract.errors import UserError
-from cosim_plugins.identify.dataset import Dataset
-from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
-from cosim_plugins.identify.joint import JointModel, OpenLoop, supports_effects
-from cosim_plugins.diagnose.localise import localise, window_features
-from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
-from cosim_plugins.identify.timeline import Timeline
 from cosim_plugins.diagnose.experiment import Experiment, design_experiment
 from cosim_plugins.diagnose.fitting import Fitter, fit_model, reduction_of, velocity_time_constant
+from cosim_plugins.diagnose.localise import localise, window_features
+from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.diagnose.verdict import fit_notes, paired_t, verdict
+from cosim_plugins.identify.dataset import Dataset
+from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
+from cosim_plugins.identify.joint import JointModel, OpenLoop, supports_effects
+from cosim_plugins.identify.timeline import Timeline
+from cosim_plugins.raw_log import read_logs
 
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"

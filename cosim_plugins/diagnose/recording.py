@@ -55,6 +55,7 @@ def _ref(diag) -> str:
 
 
 def write_recording(diag, path: Path) -> Path:
+    """Write the diagnosis as a rerun recording at ``path`` (the trajectory coloured by the error); returns it."""
     tl = diag.timeline
     rec = rr.RecordingStream(application_id="cosim_diagnose", recording_id="diagnosis")
     rec.save(str(path), default_blueprint=rrb.Blueprint(rrb.Horizontal(

@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim_plugins.identify.fit import json_default
 from cosim_plugins.diagnose.localise import FEATURES
-from cosim_plugins.identify.dataset import log_label
 from cosim_plugins.diagnose.stepwise import STOPS
 from cosim_plugins.diagnose.wording import legend, params_text
+from cosim_plugins.identify.dataset import log_label
+from cosim_plugins.identify.fit import json_default
 
 MAX_LOG_PLOTS = 6
 
@@ -50,6 +50,7 @@ def write_outputs(diag, out_dir) -> list[Path]:
 
 
 def write_plots(diag, out: Path) -> list[Path]:
+    """Write the diagnosis' PNG plots into ``out``; returns their paths."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -87,7 +88,8 @@ def _plot_time(diag, plt):
     floor = diag.result["noise_floor_mm"]
     for ax, k in zip(axes[:, 0], ids):
         sel = logs == k
-        for label, err, color in ((f"{diag.result['baseline']['model']} (baseline)", diag.errors["baseline"], "tab:red"),
+        for label, err, color in ((f"{diag.result['baseline']['model']} (baseline)", diag.errors["baseline"],
+                                   "tab:red"),
                                   (diag.errors.get("after_label"), diag.errors.get("after"), "tab:blue")):
             if err is not None:
                 ax.plot(t[sel], np.linalg.norm(err[sel], axis=1), ".", ms=2, color=color, label=label)
@@ -170,6 +172,7 @@ def _plot_before_after(diag, plt):
 
 
 def write_report(diag, out: Path, pngs: list[str]) -> Path:
+    """Write ``out/report.md`` (verdict, tables, clues, ``pngs`` linked); returns its path."""
     r = diag.result
     key = _ref_key(diag)
     hs = list(r["horizons_s"])

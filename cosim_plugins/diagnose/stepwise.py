@@ -160,7 +160,8 @@ def _interchangeable(fitter, members: list, evidence: dict, fits: dict, by_name:
         both, identifiable = fitter.with_effects(fits[members[0]], [by_name[name]])
         entry = fitter.entry(by_name[name], both, identifiable, fits[members[0]])
         if entry["reduction"] >= MIN_REDUCTION and entry["t_stat"] >= MIN_T:
-            say(f"  {name} adds {entry['reduction']:+.1%} to {members[0]} (t = {entry['t_stat']:.1f}): not a look-alike")
+            say(f"  {name} adds {entry['reduction']:+.1%} to {members[0]} (t = {entry['t_stat']:.1f}): "
+                "not a look-alike")
             evidence = {k: v for k, v in evidence.items() if k != name}
             continue
         evidence[name] = {**evidence[name], "adds": entry["reduction"], "adds_t": entry["t_stat"]}

@@ -147,8 +147,8 @@ class KalmanEstimator(Component):
         p = _read(params)
         _resolve(p["model"], p["dataset"])
         if not p["q_diag"] and not p["q_logs"]:
-            from cosim_plugins.paper.dataset import ensure_dataset
             from cosim_plugins.identify.cache import quick_data
+            from cosim_plugins.paper.dataset import ensure_dataset
 
             ensure_dataset(quick=quick_data(), profile=p["dataset"])
 

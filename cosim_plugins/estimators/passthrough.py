@@ -17,6 +17,7 @@ class Passthrough(Component):
         Port("position", (3,), "m", "estimated position (NaN before the first frame)"),
         Port("velocity", (3,), "m/s", "estimated velocity"),
     )
+    params_spec: dict = {}  # none
 
     def setup(self, params, rng):
         read_params(params, {})

@@ -19,8 +19,8 @@ import os
 import sys
 from pathlib import Path
 
-from cosim_plugins.paper.dataset import CacheLock, cache_dir, ensure_dataset
 from cosim.contract.errors import UserError
+from cosim_plugins.paper.dataset import CacheLock, cache_dir, ensure_dataset
 
 
 def _progress(message: str) -> None:
@@ -57,12 +57,15 @@ def ensure_model(kind: str, quick: bool | None = None, seed: int = 0, profile: s
 def model_path(kind: str, quick: bool, seed: int = 0, profile: str = "ideal") -> Path:
     """Where the cached ``kind`` model lives: keyed on the fingerprint of the dataset on
     ``profile`` and the model's source code (generating the dataset if needed)."""
-    from cosim_plugins.paper.dataset import plugin_sources
     from cosim.contract.plugins import lookup
+    from cosim_plugins.paper.dataset import plugin_sources
 
     dataset = ensure_dataset(quick=quick, profile=profile)
     stamp = json.loads((dataset.folder / "manifest.json").read_text())["fingerprint"]
-    code = hashlib.sha256(b"".join(Path(f).read_bytes() for f in sorted(plugin_sources(lookup("model", kind), ("cosim_plugins.", "cosim_plugins.identify.")))))
+    code = hashlib.sha256(b"".join(
+        Path(f).read_bytes()
+        for f in sorted(plugin_sources(lookup("model", kind), ("cosim_plugins.", "cosim_plugins.identify."))))
+    )
     folder = cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}"
     return folder / f"{kind}-{code.hexdigest()[:12]}.npz"
 
@@ -70,8 +73,8 @@ def model_path(kind: str, quick: bool, seed: int = 0, profile: str = "ideal") ->
 def resolve_model(spec: str, base_dir: Path | None = None, quick: bool | None = None, profile: str = "ideal"):
     """A loaded model from a file path or a kind name (trained on demand on ``profile``'s dataset);
     clear errors for both."""
-    from cosim_plugins.identify.model import load_model
     from cosim.contract.plugins import registry
+    from cosim_plugins.identify.model import load_model
 
     candidate = Path(spec)
     if base_dir is not None and not candidate.is_absolute():

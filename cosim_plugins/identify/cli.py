@@ -15,6 +15,7 @@ from cosim.contract.errors import UserError
 
 
 def add_commands(subparsers) -> None:
+    """Add ``cosim fit``, ``convert`` and ``compare`` to the ``cosim`` parser's ``subparsers``."""
     p = subparsers.add_parser("fit", help="train dynamics models from raw logs (Table II analog)",
                               description="Fit models to raw logs and write DIR/NAME.npz and DIR/fit.json.")
     p.add_argument("logs", nargs="+", metavar="LOG", help="raw log CSV files")
@@ -71,6 +72,7 @@ def _quality_table(dataset) -> str:
 
 
 def cmd_fit(args) -> int:
+    """``cosim fit``: train models on raw logs; writes ``DIR/NAME.npz`` and ``DIR/fit.json``."""
     from cosim_plugins.identify.dataset import Dataset
     from cosim_plugins.identify.fit import fit_models, resolve_names, save_models, summarise
 
@@ -114,6 +116,7 @@ def _fit_effects(args, names) -> list:
 
 
 def cmd_convert(args) -> int:
+    """``cosim convert``: a rig's command and detection recordings as one raw log."""
     from cosim_plugins.identify.convert import convert
 
     got = convert(args.commands, args.positions, args.out, args.dt, args.unit, args.pixel_mm)
@@ -125,6 +128,7 @@ def cmd_convert(args) -> int:
 
 
 def cmd_compare(args) -> int:
+    """``cosim compare``: per-model one-step and open-loop errors against the measurements."""
     from cosim_plugins.identify.compare import compare, format_table
     from cosim_plugins.identify.dataset import Dataset
     from cosim_plugins.identify.fit import load_models

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim_plugins.raw_log import write_log
 from cosim.contract.errors import UserError
+from cosim_plugins.raw_log import write_log
 
 
 def read_table(path: Path) -> tuple[list[str], np.ndarray, list[int]]:

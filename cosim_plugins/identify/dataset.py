@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim_plugins.raw_log import Log, read_logs
 from cosim.contract.errors import UserError
+from cosim_plugins.raw_log import Log, read_logs
 
 #: A step whose length differs from the nominal period by more than this is a break.
 DT_TOLERANCE = 0.25

@@ -132,7 +132,8 @@ class Model:
         r = dt_s / self.dt_s
         k = int(round(r))
         if k < 1 or abs(r - k) > 1e-6:
-            raise ValueError(f"model {self.name!r} steps {self.dt_s * 1e3:g} ms; dt {dt_s * 1e3:g} ms is not a multiple")
+            raise ValueError(f"model {self.name!r} steps {self.dt_s * 1e3:g} ms; "
+                             f"dt {dt_s * 1e3:g} ms is not a multiple")
         return k
 
     # ------------------------------------------------------------ files

@@ -126,7 +126,8 @@ def _rerun(models: dict, dataset, strips: dict, rows: int, path) -> Path:
         idx = idx[idx + 1 < rows]
         if len(idx):
             pred = model.predict(dataset.x[idx], dataset.u[idx], dataset.dt_s)[:, :3]
-            rec.send_columns(f"models/{name}/one_step", indexes=[rr.TimeColumn("time", duration=(idx + 1) * dataset.dt_s)],
+            rec.send_columns(f"models/{name}/one_step",
+                             indexes=[rr.TimeColumn("time", duration=(idx + 1) * dataset.dt_s)],
                              columns=rr.Points3D.columns(positions=pred, radii=np.full(len(idx), 0.4)))
         if strips.get(name):
             rec.log(f"models/{name}/rollouts", rr.LineStrips3D(strips[name]), static=True)

@@ -51,8 +51,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from cosim.contract.errors import UserError
-from cosim_plugins.identify.model import Model
 from cosim_plugins.identify.effect import effect_sources, restore_effects
+from cosim_plugins.identify.model import Model
 from cosim_plugins.identify.terms import ForceTerm, Param
 
 BASE_PARAMS = (  # scales: typical magnitudes for a mm-sized swimmer (tau_v ~ 0.03-0.5 s, 1-5 mm/s per Hz)

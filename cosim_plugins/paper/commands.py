@@ -10,11 +10,13 @@ from cosim.contract.errors import UserError
 
 
 def add_commands(sub) -> None:
+    """Add ``cosim dataset`` and ``cosim reproduce`` to the ``cosim`` parser's ``sub``."""
     add_dataset_command(sub)
     add_reproduce_command(sub)
 
 
 def add_dataset_command(sub) -> None:
+    """Add ``cosim dataset`` to ``sub``."""
     p = sub.add_parser("dataset", help="generate (or reuse) the paper's training, test and validation logs")
     p.add_argument("--quick", action="store_true", help="40 s runs instead of 290 s each")
     p.add_argument("--out", type=Path, default=None, help="folder (default: the cache, $COSIM_CACHE or ./cache)")
@@ -26,6 +28,7 @@ def add_dataset_command(sub) -> None:
 
 
 def cmd_dataset(args) -> int:
+    """``cosim dataset``: generate (or reuse) the paper's logs and print where they are."""
     from cosim_plugins.paper.dataset import ensure_dataset
 
     ds = ensure_dataset(quick=args.quick, folder=args.out, force=args.force, jobs=parse_jobs(args.jobs),
@@ -39,30 +42,33 @@ def cmd_dataset(args) -> int:
 
 
 def add_reproduce_command(sub) -> None:
+    """Add ``cosim reproduce`` to ``sub``."""
     p = sub.add_parser("reproduce", help="regenerate every table and figure of the paper in simulation")
     p.add_argument("--out", type=Path, required=True, help="report folder")
     p.add_argument("--quick", action="store_true", help="shortened experiments (a few minutes in all)")
-    p.add_argument("--readme", type=Path, default=None, metavar="README.md",
-                   help="also put the tables into this README's results block (plots go to docs/results/)")
+    p.add_argument("--docs", "--readme", dest="page", type=Path, default=None, metavar="PAGE.md",
+                   help="also put the tables into this page's results block, e.g. docs/results.md (plots go "
+                        "to the folder results/ beside it)")
     add_jobs_argument(p, "each sweep's runs at a time, each in a worker process")
     p.set_defaults(func=cmd_reproduce)
 
 
 def cmd_reproduce(args) -> int:
+    """``cosim reproduce``: every table and figure of the paper, and the docs' results page on request."""
     from cosim_plugins.paper.report_format import filled
     from cosim_plugins.paper.reproduce import reproduce
 
-    if args.readme and not args.readme.is_file():
-        raise UserError(f"--readme {args.readme} does not exist")
+    if args.page and not args.page.is_file():
+        raise UserError(f"--docs {args.page} does not exist")
 
     report = reproduce(args.out, quick=args.quick, jobs=parse_jobs(args.jobs))
     print(f"report: {args.out / 'report.md'} (and report.html, report.json); {report['wall_time_s']:.0f} s")
     empty = filled((args.out / "report.md").read_text())
     if empty:
         print(f"warning: {len(empty)} table rows have missing figures", file=sys.stderr)
-    if args.readme:
-        from cosim_plugins.paper.reproduce import update_readme
+    if args.page:
+        from cosim_plugins.paper.reproduce import update_results
 
-        update_readme(args.out, args.readme, args.readme.parent / "docs" / "results")
-        print(f"updated the results in {args.readme}")
+        update_results(args.out, args.page, args.page.parent / "results")
+        print(f"updated the results in {args.page}")
     return 0

@@ -1,10 +1,10 @@
 """The paper's dataset: 12 training, 12 test and 1 validation log, generated on demand and cached.
 
-``scenarios/paper/training.yaml`` (a 12-run sweep: circle and racetrack at six
+The shipped scenario ``paper/training`` (a 12-run sweep: circle and racetrack at six
 angles) makes the training logs; the same sweep with another seed and 60 s
 per case makes the test logs (unseen noise and trajectories of the same
 paths, our analog of the paper's 80/20 test split); and
-``scenarios/paper/validation.yaml`` (the rotating circle) the validation log.
+``paper/validation`` (the rotating circle) the validation log.
 They are run once and their ``log.csv`` files kept under ``<cache>/paper_dataset``. The
 cache is reused while the scenario files, the plant FMU and the length
 (full or ``quick``) are unchanged; otherwise it is regenerated.
@@ -31,9 +31,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cosim.scenario.schema import profile_values
+from cosim_plugins.resources import SCENARIOS_DIR
 
-REPO = Path(__file__).resolve().parents[2]
-PAPER_SCENARIOS = REPO / "scenarios" / "paper"
+PAPER_SCENARIOS = SCENARIOS_DIR / "paper"
 #: Simulated seconds per case with ``quick`` (the full cases last 290 s, 14,500 rows).
 QUICK_DURATION_S = 40.0
 #: Simulated seconds per test case (full / quick) and the test set's seed.
@@ -42,11 +42,13 @@ TEST_SEED = 300
 
 
 def cache_dir() -> Path:
+    """The cache folder: ``$COSIM_CACHE``, else ``./cache``."""
     return Path(os.environ.get("COSIM_CACHE", "cache")).resolve()
 
 
 @dataclass
 class PaperDataset:
+    """The dataset's log files by split, and the folder holding them."""
     training: list[Path]
     test: list[Path]
     validation: list[Path]
@@ -58,9 +60,9 @@ def _fingerprint(quick: bool, profile: str = "ideal") -> str:
     components and paths the scenarios use (with the plugin modules those import), the
     length and the profile (its name and values; ``ideal`` adds nothing, so its cache
     keys are those of the data made before profiles existed)."""
+    from cosim.runtime.wiring import build_wiring
     from cosim.scenario.paths import make_path
     from cosim.scenario.schema import load_scenario
-    from cosim.runtime.wiring import build_wiring
     from cosim_plugins.plant.build import ensure_fmu
 
     h = hashlib.sha256()

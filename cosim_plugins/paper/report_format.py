@@ -32,6 +32,7 @@ def _sweep(result: dict) -> list[dict]:
 
 
 def table2(report: dict) -> list[str]:
+    """The report's Table II lines: training time and parameter count, ours next to the paper's."""
     ours, paper = report["ours"]["table2"]["models"], report["paper"]["table2"]
     rows = [[NAMES[m], _n(ours[m]["train_time_s"]), _n(paper[m][0]), str(ours[m]["n_params"]), str(paper[m][1])]
             for m in paper if m in ours]
@@ -57,6 +58,7 @@ def _rollout(result: dict, horizon: str) -> str:
 
 
 def table3(report: dict) -> list[str]:
+    """The report's Table III lines: prediction errors by split, ours next to the paper's."""
     lines = ["## Table III: prediction error against the measurements [mm]", "",
              "One step ahead (per axis and norm, the paper's Table III), and at the end of open-loop "
              "rollouts of 0.1, 0.42 and 1.0 s fed the recorded commands (norm).", ""]
@@ -84,6 +86,7 @@ def table3(report: dict) -> list[str]:
 
 
 def table4(report: dict) -> list[str]:
+    """The report's Table IV lines: real-time prediction on the rotating circle, ours next to the paper's."""
     paper = report["paper"]["table4"]
     rows = []
     for r in _sweep(report["ours"]["table4"]):
@@ -102,7 +105,7 @@ def table4(report: dict) -> list[str]:
 PROFILE_NOTE = {
     "ideal": "the plant and camera as the scenarios give them: 20 mm/s cruise, 0.5 px camera noise, no "
              "latency, 0.2 % reflection outliers, still water",
-    "lab": "`--set profile=lab` (README *Profiles*): 40 mm/s cruise, 40 ms camera latency, 1 px noise, 2 % "
+    "lab": "`--set profile=lab` (docs: Profiles): 40 mm/s cruise, 40 ms camera latency, 1 px noise, 2 % "
            "reflection outliers, 2 % lost and 1 % dropped detections, a 1 mm/s convection flow, wall drag, "
            "added mass, and the paper's net weight (sinking at 12 mm/s along the axis) and drag anisotropy (1.165)",
 }
@@ -118,6 +121,7 @@ def _profiles(report: dict, key: str) -> list[str]:
 
 
 def fig6(report: dict) -> list[str]:
+    """The report's Fig. 6 lines: tracking error against the feedback interval, per profile."""
     lines = ["## Fig. 6: tracking error against the camera feedback interval", ""]
     for profile in _profiles(report, "fig6"):
         lines += _fig6_profile(report, profile)
@@ -176,6 +180,7 @@ def _fig6_profile(report: dict, profile: str) -> list[str]:
 
 
 def paths(report: dict) -> list[str]:
+    """The report's path-following lines (Fig. 3, Fig. 7, Sec. III-E), per profile."""
     lines = ["## Fig. 3, Fig. 7 and Sec. III-E: path following with PI, MRAC and MPC", ""]
     paper = report["paper"]["paths"]
     for profile in _profiles(report, "racetrack"):
@@ -205,12 +210,12 @@ def paths(report: dict) -> list[str]:
                   + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items())
                   + f"; the paper's finding (MPC comparable to PI: its error at most 30 % above PI's) holds on "
                   f"{', '.join(within) if within else 'neither path'}."
-                  + (f" The MPC is more than 30 % ahead of PI on {', '.join(ahead)} (README *Profiles* says "
+                  + (f" The MPC is more than 30 % ahead of PI on {', '.join(ahead)} (the Profiles page says "
                      "where the difference comes from)." if ahead else "")
                   + ("" if len(within) == len(ratios) else
                      " The MPC predicts with the linear SINDy model identified on the profile's own dataset, "
                      "without its position terms, and steps the camera's late frame forward over its latency "
-                     "(README *Profiles*)."), ""]
+                     "(docs: Profiles)."), ""]
     m = report["paper"]["mpc_solve_ms"]
     lines += [f"The paper's MPC (MATLAB fmincon, SQP) took {m[0]} ± {m[1]} ms per solve; ours is the "
               "same objective as a condensed quadratic program set up once and solved warm-started by "
@@ -220,6 +225,7 @@ def paths(report: dict) -> list[str]:
 
 
 def markdown(report: dict) -> str:
+    """The whole report as Markdown."""
     mode = "quick (shortened experiments)" if report["quick"] else "full"
     lines = ["# Reproduction of the paper's results in simulation", "",
              f"Mode: {mode}. Wall time: {report['wall_time_s']:.0f} s with {report.get('jobs', 1)} run(s) at a "

@@ -1,7 +1,6 @@
 """Plant plugin: the six-coil manipulator + swimmer + tank FMU as component ``plant.fmu``."""
 
 from cosim import hookimpl
-
 from cosim_plugins.plant.fmu_component import FmuPlant
 
 __all__ = ["FmuPlant"]

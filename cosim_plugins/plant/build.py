@@ -1,11 +1,15 @@
-"""Build the plant FMU (``swimmer_plant.fmu``) from the C sources in ``fmus/swimmer_plant``.
+"""Build the plant FMU (``swimmer_plant.fmu``) from the C sources the package ships
+(``cosim_plugins/plant/swimmer_plant``).
 
 ``build_fmu(out)`` compiles the sources with gcc into
 ``binaries/<platform>/swimmer_plant.so`` and zips it with ``modelDescription.xml``.
-``ensure_fmu()`` returns an up-to-date FMU, building it only when it is missing
-or older than a source file. Command line (what the Makefile runs)::
+``ensure_fmu()`` returns the FMU the plant runs: ``$COSIM_FMU`` if set, else the one
+built from these sources into the user cache dir (``~/.cache/cosim-swimmer/``, one file
+per content of the sources, so checkouts and installs of different versions never
+rebuild each other's), built on first use. Command line (what ``make fmu`` runs)::
 
-    python -m cosim_plugins.plant.build --out build/swimmer_plant.fmu
+    python -m cosim_plugins.plant.build              # the cached FMU (built if missing); prints its path
+    python -m cosim_plugins.plant.build --out X.fmu  # (re)build into X.fmu
 
 The FMI 2.0 headers are the ones shipped with fmpy (``fmpy/c-code``).
 """
@@ -13,6 +17,7 @@ The FMI 2.0 headers are the ones shipped with fmpy (``fmpy/c-code``).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import shutil
 import subprocess
@@ -22,11 +27,10 @@ import zipfile
 from pathlib import Path
 
 from cosim.contract.errors import UserError
+from cosim_plugins.resources import package_path, user_cache_dir
 
 MODEL_IDENTIFIER = "swimmer_plant"
-REPO_ROOT = Path(__file__).resolve().parents[2]
-SOURCE_DIR = REPO_ROOT / "fmus" / MODEL_IDENTIFIER
-DEFAULT_FMU = REPO_ROOT / "build" / f"{MODEL_IDENTIFIER}.fmu"
+SOURCE_DIR = package_path("plant", MODEL_IDENTIFIER)
 ENV_FMU = "COSIM_FMU"
 CFLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-std=c99", "-D_DEFAULT_SOURCE"]
 
@@ -40,6 +44,19 @@ def source_files() -> list[Path]:
     return sorted(
         p for p in SOURCE_DIR.iterdir() if p.suffix in {".c", ".h", ".xml"} and p.is_file()
     )
+
+
+def sources_digest() -> str:
+    """A short hash of the sources' names and contents (what the cached FMU is keyed by)."""
+    h = hashlib.sha256()
+    for src in source_files():
+        h.update(src.name.encode() + b"\0" + src.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def default_fmu() -> Path:
+    """The cached FMU of these sources: ``<user cache>/fmu/swimmer_plant-<digest>.fmu``."""
+    return user_cache_dir() / "fmu" / f"{MODEL_IDENTIFIER}-{sources_digest()}.fmu"
 
 
 def find_compiler() -> str:
@@ -102,12 +119,20 @@ def _is_stale(fmu: Path) -> bool:
     return any(src.stat().st_mtime > built for src in source_files())
 
 
+def cached_fmu() -> Path:
+    """:func:`default_fmu`, built first if missing."""
+    fmu = default_fmu()
+    if not fmu.is_file():
+        build_fmu(fmu)
+    return fmu.resolve()
+
+
 def ensure_fmu(path: str | os.PathLike | None = None) -> Path:
     """An up-to-date plant FMU.
 
     With ``path=None``: the FMU named by the environment variable ``COSIM_FMU``
-    if set (used as is, never rebuilt), else ``<repo>/build/swimmer_plant.fmu``.
-    A missing FMU, or one older than any source file, is (re)built.
+    if set (used as is, never rebuilt), else :func:`default_fmu`, built if missing.
+    A given ``path`` is (re)built when missing or older than any source file.
     """
     if path is None:
         env = os.environ.get(ENV_FMU)
@@ -116,7 +141,7 @@ def ensure_fmu(path: str | os.PathLike | None = None) -> Path:
             if not fmu.is_file():
                 raise FmuBuildError(f"{ENV_FMU}={env} does not name an existing FMU file")
             return fmu.resolve()
-        path = DEFAULT_FMU
+        return cached_fmu()
     fmu = Path(path)
     if _is_stale(fmu):
         build_fmu(fmu)
@@ -124,11 +149,13 @@ def ensure_fmu(path: str | os.PathLike | None = None) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line: build the FMU (``--out``) or ensure the cached one; prints its path."""
     parser = argparse.ArgumentParser(description="Build the swimmer plant FMU.")
-    parser.add_argument("--out", default=str(DEFAULT_FMU), help="output .fmu path")
+    parser.add_argument("--out", default=None,
+                        help="build into this .fmu file (default: the user cache's, built only if missing)")
     args = parser.parse_args(argv)
     try:
-        print(build_fmu(args.out))
+        print(build_fmu(args.out) if args.out else cached_fmu())
     except FmuBuildError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

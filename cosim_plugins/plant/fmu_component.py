@@ -3,7 +3,7 @@
 A :class:`cosim.components.FmuComponent`: inputs arrive over a delayed edge
 from the coil driver (the values seen at ``step(t)`` were applied over
 ``[t_prev, t)``), and every FMU parameter can be set from the scenario by its
-FMI name (see ``fmus/swimmer_plant/README.md``). The project's FMU is built on
+FMI name (see ``cosim_plugins/plant/swimmer_plant/README.md``). The project's FMU is built on
 first use; ``fmu`` names a user's.
 """
 
@@ -12,8 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
-from cosim import ComponentError, Port
+from cosim import Port
 from cosim.components import FmuComponent
+
 
 class FmuPlant(FmuComponent):
     """Six-coil manipulator + spiral swimmer + tank, simulated by the C FMU."""
@@ -52,6 +53,13 @@ class FmuPlant(FmuComponent):
     def prepare(cls, params: Mapping[str, Any]) -> None:
         """Build the project's FMU now if it is missing or stale (a user's FMU is used as it is)."""
         cls.fmu_file(params)
+
+    @classmethod
+    def model_description_file(cls, params: Mapping[str, Any]) -> Path:
+        """The project's ``modelDescription.xml`` (checking a scenario builds nothing), or a user's FMU."""
+        from cosim_plugins.plant.build import SOURCE_DIR
+
+        return SOURCE_DIR / "modelDescription.xml" if params.get("fmu") is None else cls.fmu_file(params)
 
     @classmethod
     def fmu_file(cls, params: Mapping[str, Any]) -> Path:

@@ -3,8 +3,8 @@
 ``ideal`` (the default, not registered here) runs every component with the
 parameters its scenario gives. ``lab`` sets, on every component of a
 scenario using these plugins, the values below: what the authors' rig has
-and our default emulation lacks. One place for all of them; the README's
-*Profiles* table gives each value's evidence (a figure of the paper, the
+and our default emulation lacks. One place for all of them; the docs'
+Profiles page (docs/profiles.md) gives each value's evidence (a figure of the paper, the
 authors' earlier work, or a physical estimate). None was tuned to make a
 figure of the reproduction come out at the paper's number.
 """
@@ -12,6 +12,7 @@ figure of the reproduction come out at the paper's number.
 from __future__ import annotations
 
 from cosim import hookimpl
+from cosim.contract.params import Profile
 
 #: cruise speed [mm/s]: the authors' MRAC work swims at ~50 mm/s on average; our plant's
 #: 40 V supply steps the swimmer out at 21 Hz (52 mm/s), so 40 mm/s (16 Hz) leaves the
@@ -62,7 +63,10 @@ LAB = {
                   "anisotropy_ratio": LAB_ANISOTROPY},
 }
 
-PROFILES = {"lab": LAB}
+PROFILES = {"lab": Profile(LAB, (
+    "the authors' rig as far as the paper and physics tell it: 40 mm/s cruise, 40 ms camera latency, "
+    "1 px noise, 2 % outliers and lost frames, 1 mm/s convection, wall drag, added mass, the paper's "
+    "net weight and drag anisotropy. Each value's evidence: the docs' Profiles page"))}
 
 
 @hookimpl

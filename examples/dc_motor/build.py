@@ -37,6 +37,7 @@ class FmuBuildError(RuntimeError):
 
 
 def pythonfmu_version() -> str | None:
+    """The installed pythonfmu's version, or None when it is not installed."""
     try:
         return metadata.version("pythonfmu")
     except metadata.PackageNotFoundError:

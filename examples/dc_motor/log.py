@@ -20,6 +20,7 @@ HEADER = "t_s,voltage_V,setpoint_rad_s,demand_V,current_A,speed_rad_s,angle_rad"
 
 
 class MotorLogFile:
+    """The motor's raw log (``log.csv``), written a row per tick as the run goes."""
     def __init__(self, path: Path):
         self.path = Path(path)
         self._fh = open(self.path, "w", newline="\n")
@@ -37,6 +38,7 @@ class MotorLogFile:
 
 
 class MotorLog(RunView):
+    """The DC motor's view of a run: its raw log, from the roles ``motor_command`` and ``motor_state``."""
     roles = {"motor_command": "controller.command", "motor_state": "motor.state"}
     files = {"log": "log.csv"}
 

@@ -40,6 +40,7 @@ class Scope(Component):
         Port("load_torque_Nm", (), "N m", "load torque"),
     )
     uses_run_dir = True
+    params_spec: dict = {}  # none
 
     @classmethod
     def recording_views(cls, name):

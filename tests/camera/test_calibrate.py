@@ -13,6 +13,7 @@ from cosim.cli import main
 from cosim_plugins.camera.board import load_target, render_board
 from cosim_plugins.camera.calibration import load_calibration
 from cosim_plugins.camera.sources.render import acA800_pair
+from cosim_plugins.resources import package_path
 
 REPO = Path(__file__).parents[2]
 # an 11 x 8 board of 10 mm squares, its printed face towards each camera: flat on the tank's floor
@@ -72,7 +73,7 @@ def test_calibration_recovers_the_renderers_cameras(tmp_path, capsys):
 
 
 def test_the_scenarios_calibration_file_is_the_renderers_pair(cameras):
-    named = load_calibration(REPO / "scenarios" / "cameras" / "acA800_pair.yaml")
+    named = load_calibration(package_path("camera", "acA800_pair.yaml"))
     grid = np.random.default_rng(0).uniform(-0.075, 0.075, (50, 3))
     for view in ("top", "side"):
         assert named[view].size == cameras[view].size

@@ -7,12 +7,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from cosim.cli import main
 from recording_checks import recorded_entities
 
+from cosim.cli import main
+from cosim_plugins.resources import SCENARIOS_DIR, package_path
+
 REPO = Path(__file__).parents[2]
-SCENARIO = REPO / "scenarios" / "camera_frames.yaml"
-CALIBRATION = REPO / "scenarios" / "cameras" / "acA800_pair.yaml"
+SCENARIO = SCENARIOS_DIR / "camera_frames.yaml"
+CALIBRATION = package_path("camera", "acA800_pair.yaml")
 EMULATOR = ["--set", "components.camera.plugin=camera.emulator", "--set", "components.camera.params={}",
             "--set", "components.camera.inputs={position: plant.position}"]
 

@@ -18,10 +18,11 @@ import pytest
 from cosim_plugins.camera.frame_video import FrameVideos
 from cosim_plugins.camera.sources.render import Look, Renderer
 from cosim_plugins.camera.sources.video import VideoSource
+from cosim_plugins.resources import SCENARIOS_DIR, package_path
 
 REPO = Path(__file__).parents[2]
-SCENARIO = REPO / "scenarios" / "camera_frames.yaml"
-CALIBRATION = REPO / "scenarios" / "cameras" / "acA800_pair.yaml"
+SCENARIO = SCENARIOS_DIR / "camera_frames.yaml"
+CALIBRATION = package_path("camera", "acA800_pair.yaml")
 
 
 def rendered_pairs(cameras, n: int) -> list:

@@ -6,11 +6,10 @@ import shutil
 
 import numpy as np
 import pytest
+from coil_fakes import DATA, DT, SimSupplies
 
 from cosim_plugins.coil_driver.backends import Rig
 from cosim_plugins.coil_driver.inverse import InverseMagnetics
-
-from coil_fakes import DATA, DT, SimSupplies
 
 
 @pytest.fixture

@@ -12,8 +12,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
 from coil_fakes import DT, skip_if_ni_daqmx_installed, spin
+
 from cosim import ComponentError
 from cosim_plugins.coil_driver.actuation import centre_matrix, impedance_ohm
 from cosim_plugins.coil_driver.backends import Rig
@@ -133,7 +133,8 @@ class FakeTask:
 
 
 def daq_reference(task: FakeTask, prefill: int = 2, ramp_s: float = 0.1) -> DaqReference:
-    return DaqReference("Dev1/ao0:5", RATE, DT, GAIN, 10.0, prefill, ramp_s, daqmx=FAKE_DAQMX, task_factory=lambda: task)
+    return DaqReference("Dev1/ao0:5", RATE, DT, GAIN, 10.0, prefill, ramp_s, daqmx=FAKE_DAQMX,
+                        task_factory=lambda: task)
 
 
 def test_open_configures_a_continuous_non_regenerating_output_of_prefill_plus_one_chunks():

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from coil_fakes import DT, RecordingReference, spin
+
 from cosim import ComponentError
 from cosim.cli import main
 from cosim_plugins.coil_driver.actuation import impedance_ohm
@@ -18,6 +18,7 @@ from cosim_plugins.coil_driver.backends import Rig
 from cosim_plugins.coil_driver.interlocks import Limits, ThermalBudget, limit_scale
 from cosim_plugins.coil_driver.inverse import InverseMagnetics
 from cosim_plugins.coil_driver.params import PARAMS
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).parents[2]
 
@@ -217,7 +218,7 @@ def test_bad_parameters_are_named_before_any_hardware_opens(params, message):
      "daq_rate_hz=150 gives 1.5 samples per 0.01 s tick"),  # the scenario's dt, not the default
 ])
 def test_cosim_validate_names_a_bad_backend_parameter_in_one_line(capsys, overrides, message):
-    args = ["validate", str(ROOT / "scenarios" / "racetrack.yaml")]
+    args = ["validate", str(SCENARIOS_DIR / "racetrack.yaml")]
     for item in overrides:
         args += ["--set", item]
     assert main(args) == 2
@@ -226,9 +227,8 @@ def test_cosim_validate_names_a_bad_backend_parameter_in_one_line(capsys, overri
     assert message in err and len(err.splitlines()) == 1
 
 
-def test_the_readme_lists_every_interlock_and_backend_parameter_with_its_default():
-    readme = (ROOT / "README.md").read_text()
-    section = readme.split("## Running the real rig", 1)[1].split("\n## ", 1)[0]
+def test_the_rig_page_lists_every_interlock_and_backend_parameter_with_its_default():
+    section = (ROOT / "docs" / "rig.md").read_text()
     rows = dict(re.findall(r"^\| `(\w+)` \| `([^`]*)` \|", section, flags=re.M))
     actuation = {"field_mT", "turns", "r_inner_mm", "r_outer_mm", "z_near_mm", "thickness_mm", "r_ohm", "l_h",
                  "c_f", "f_min_hz"}  # the driver's model of the coils, documented in its own module

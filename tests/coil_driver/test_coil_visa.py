@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from coil_fakes import ADDRESSES, DT, STUCK, RecordingReference, spin
+
 from cosim import ComponentError
 from cosim_plugins.coil_driver.backends import Rig
 from cosim_plugins.coil_driver.visa_backend import KepcoSupplies, parse_error

@@ -15,12 +15,13 @@ import time
 from pathlib import Path
 
 import pytest
-
 from coil_fakes import ADDRESSES, STUCK, skip_if_ni_daqmx_installed
-from cosim.cli import main
 from recording_checks import recorded_events
 
-RACETRACK = Path(__file__).parents[2] / "scenarios" / "racetrack.yaml"
+from cosim.cli import main
+from cosim_plugins.resources import SCENARIOS_DIR
+
+RACETRACK = SCENARIOS_DIR / "racetrack.yaml"
 
 
 def cosim_run(out: Path, sim_supplies, addresses=ADDRESSES, duration_s: float = 0.5, *extra: str) -> int:

@@ -9,7 +9,6 @@ import pytest
 from cosim.runtime.runner import RunRequest, run
 
 
-
 @pytest.fixture(scope="package", autouse=True)
 def quick_dataset():
     """Models named by kind (``sindy-linear``) are trained on the short paper dataset."""

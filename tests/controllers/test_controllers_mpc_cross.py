@@ -16,7 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+from cosim_plugins.resources import SCENARIOS_DIR
+
+SCENARIOS = SCENARIOS_DIR
 STRAIGHT_MM, RADIUS_MM = 30.0, 40.0  # scenarios/controllers_racetrack.yaml
 
 

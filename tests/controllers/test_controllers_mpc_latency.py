@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 
 from cosim import ComponentError
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = SCENARIOS_DIR
 LATENCY = ["profile=lab", "duration_s=12", "components.controller.plugin=controller.mpc"]
 
 

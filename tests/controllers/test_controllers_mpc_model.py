@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_controllers_mpc_qp import swimmer_like
 
 from cosim import ComponentError
-from cosim_plugins.identify.model import Model
 from cosim.scenario.paths import make_path
 from cosim_plugins.controllers.mpc import MPCController, model_matrices
-from test_controllers_mpc_qp import swimmer_like
+from cosim_plugins.identify.model import Model
 
 
 class Linear(Model):

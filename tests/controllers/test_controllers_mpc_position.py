@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from test_controllers_mpc_cross import curve_stats
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+from cosim_plugins.resources import SCENARIOS_DIR
+
+SCENARIOS = SCENARIOS_DIR
 RUN = ["profile=lab", "duration_s=12", "components.controller.plugin=controller.mpc"]
 
 
@@ -45,7 +46,7 @@ def test_with_the_position_terms_the_mpc_sits_inside_the_path(runs):
 
 
 def test_without_them_the_offset_goes(runs):
-    (kept, kept_dir), (dropped, dropped_dir) = runs[True], runs[None]
+    (_, kept_dir), (dropped, dropped_dir) = runs[True], runs[None]
     assert dropped["status"] == "ok"
     straights, straights_kept = (straight_offset_mm(d / "trace.npz") for d in (dropped_dir, kept_dir))
     assert abs(straights) < 0.3 * abs(straights_kept), f"straights {straights:.2f} mm (kept: {straights_kept:.2f})"

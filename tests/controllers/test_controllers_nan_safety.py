@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from cosim.contract import plugins
-from cosim_plugins.raw_log import read_log
 from cosim.runtime.runner import RunRequest, run
 from cosim.runtime.scheduler import RunError
+from cosim_plugins.raw_log import read_log
 
 SCENARIO = Path(__file__).parent / "data" / "nan_racetrack.yaml"
 NAN_AT_S, DT = 1.0, 0.02

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+from cosim_plugins.resources import SCENARIOS_DIR
+
+SCENARIOS = SCENARIOS_DIR
 
 DURATION_S = 12.0
 #: Mean tracking error bound for the short run [mm] (60 s runs: PI ~1.8, MRAC ~0.6, MPC ~0.8).

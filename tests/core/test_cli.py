@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from cosim.cli import main
+from cosim_plugins.resources import SCENARIOS_DIR
 
 REPO = Path(__file__).parents[2]
 
@@ -18,7 +19,7 @@ def test_plugins_lists_every_kind(capsys):
 
 
 def test_validate_prints_the_wiring_table(capsys):
-    assert main(["validate", str(REPO / "scenarios" / "racetrack.yaml")]) == 0
+    assert main(["validate", str(SCENARIOS_DIR / "racetrack.yaml")]) == 0
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if line.startswith("plant.coil_voltage_amp "))
     assert row.split() == ["plant.coil_voltage_amp", "coil_driver.coil_voltage_amp", "(6,)", "V", "1"]
@@ -27,7 +28,7 @@ def test_validate_prints_the_wiring_table(capsys):
 
 
 def test_validate_names_a_wrong_port(tmp_path, capsys):
-    text = (REPO / "scenarios" / "racetrack.yaml").read_text().replace("{omega: controller.omega}",
+    text = (SCENARIOS_DIR / "racetrack.yaml").read_text().replace("{omega: controller.omega}",
                                                                        "{omega: controller.omegaa}")
     (tmp_path / "s.yaml").write_text(text)
     assert main(["validate", str(tmp_path / "s.yaml")]) == 2
@@ -41,6 +42,7 @@ def test_replay_without_a_recording_is_a_clear_error(tmp_path, capsys):
 
 
 def test_node_with_a_bad_endpoint_is_a_clear_error(capsys):
-    args = ["node", "plant", str(REPO / "scenarios" / "racetrack.yaml"), "--run-id", "x", "--connect", "tcp/127.0.0.1:1", "--listen", "garbage"]
+    args = ["node", "plant", str(SCENARIOS_DIR / "racetrack.yaml"), "--run-id", "x", "--connect", "tcp/127.0.0.1:1",
+            "--listen", "garbage"]
     assert main(args) == 2
     assert "bad zenoh endpoint in --listen garbage" in capsys.readouterr().err

@@ -1,4 +1,5 @@
-"""The README's plugin example: a user's estimator loaded from a file named in the scenario."""
+"""The docs' plugin example (docs/framework/writing-a-plugin.md): a user's estimator loaded from a file
+named in the scenario."""
 
 from __future__ import annotations
 

@@ -12,6 +12,7 @@ import pytest
 from cosim.cli import main
 from cosim.contract.errors import UserError
 from cosim.runtime.placement import node_cpus, parse_cpu_list
+from cosim_plugins.resources import SCENARIOS_DIR
 
 REPO = Path(__file__).parents[2]
 linux_only = pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="CPU affinity is Linux-only")
@@ -45,7 +46,8 @@ def test_pinning_moves_every_thread_and_later_ones_under_sched_batch():
         "t = threading.Thread(target=early); t.start()\n"
         f"pin_this_process('{cpu}')\n"
         "ev.set(); t.join()\n"
-        "late = threading.Thread(target=lambda: seen.__setitem__('late', (os.sched_getaffinity(0), os.sched_getscheduler(0))))\n"
+        "late = threading.Thread(target=lambda: seen.__setitem__('late', (os.sched_getaffinity(0), "
+        "os.sched_getscheduler(0))))\n"
         "late.start(); late.join()\n"
         "print(all(s == ({" + str(cpu) + "}, os.SCHED_BATCH) for s in seen.values()) and len(seen) == 2)\n"
     )
@@ -54,7 +56,7 @@ def test_pinning_moves_every_thread_and_later_ones_under_sched_batch():
 
 
 def test_a_bad_node_cpu_list_stops_the_run_before_it_starts(tmp_path, capsys):
-    args = ["run", str(REPO / "scenarios" / "racetrack.yaml"), "--out", str(tmp_path / "r"), "--processes",
+    args = ["run", str(SCENARIOS_DIR / "racetrack.yaml"), "--out", str(tmp_path / "r"), "--processes",
             "--node-cpus", "first", "--quiet"]
     assert main(args) == 2
     assert "CPU list 'first': expected auto, none or a CPU list such as 1 or 0,2-3" in capsys.readouterr().err
@@ -62,7 +64,7 @@ def test_a_bad_node_cpu_list_stops_the_run_before_it_starts(tmp_path, capsys):
 
 
 def test_a_node_with_a_bad_cpu_list_fails_before_it_connects(capsys):
-    args = ["node", "plant", str(REPO / "scenarios" / "racetrack.yaml"), "--run-id", "x",
+    args = ["node", "plant", str(SCENARIOS_DIR / "racetrack.yaml"), "--run-id", "x",
             "--connect", "tcp/127.0.0.1:1", "--cpus", "1-"]
     assert main(args) == 2
     assert "CPU list '1-': expected auto, none or a CPU list" in capsys.readouterr().err

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
-from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
 from cosim.record.summary import largest_below, monotonic_within_spread, pool_replicates
+from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
 from cosim_plugins.profiles import LAB
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIOS = SCENARIOS_DIR
 
 
 def test_ideal_is_the_default_and_leaves_params_alone():
@@ -85,8 +84,8 @@ def test_lab_scenarios_train_their_models_on_the_lab_dataset():
 
 
 def test_the_dataset_cache_key_includes_the_profile(monkeypatch, tmp_path):
-    from cosim_plugins.paper import dataset
     from cosim.contract.errors import UserError
+    from cosim_plugins.paper import dataset
 
     monkeypatch.setenv("COSIM_CACHE", str(tmp_path))
     assert dataset.dataset_folder(True) == tmp_path / "paper_dataset_quick"

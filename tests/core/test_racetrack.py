@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 from cosim.cli import main
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).parents[2] / "scenarios" / "racetrack.yaml"
+SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
 
 
 def test_pi_follows_the_racetrack_within_3_mm(tmp_path, capsys):

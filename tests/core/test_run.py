@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim_plugins.raw_log import HEADER, read_log
 from cosim.runtime.runner import RunRequest, run
 from cosim.runtime.scheduler import REPLY_BATCH, RunError
+from cosim_plugins.raw_log import HEADER, read_log
 
 DATA = Path(__file__).parent / "data"
 TOY = DATA / "toy.yaml"

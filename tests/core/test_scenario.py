@@ -9,6 +9,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
+from cosim_plugins.resources import SCENARIOS_DIR
 
 GOOD = textwrap.dedent("""\
     name: t
@@ -115,12 +116,11 @@ def test_every_shipped_scenario_and_each_of_its_sweep_runs_validates():
     """What `cosim validate` checks (fields, plugins, their parameters, the wiring), on every file in
     scenarios/ and on each run of its sweep, so a typo in a shipped sweep row fails here, not an
     hour into a reproduction."""
-    from pathlib import Path
 
     from cosim.runtime.wiring import build_wiring
 
-    root = Path(__file__).resolve().parents[2] / "scenarios"
-    # cameras/ holds camera set-ups; flow_kf_sweep names model files the README's flow example fits first
+    root = SCENARIOS_DIR
+    # cameras/ holds camera set-ups; flow_kf_sweep names model files the docs' flow example fits first
     files = [p for p in sorted(root.rglob("*.yaml")) if p.parent.name != "cameras" and p.name != "flow_kf_sweep.yaml"]
     assert len(files) >= 10
     for path in files:

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim_plugins.raw_log import read_log
 from cosim.record.recorder import FLUSH_EVERY_S, load_trace
+from cosim_plugins.raw_log import read_log
 
 TOY = Path(__file__).parent / "data" / "toy.yaml"
 DT_S = 0.02

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from figure_checks import assert_labelled
 
 from cosim.record.summary import detection_error_m, largest_below, sweep_plot, sweep_table
-from figure_checks import assert_labelled
 
 
 def row(interval, est, mean, status="ok"):

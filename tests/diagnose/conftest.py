@@ -13,10 +13,9 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pytest
+from plant_variants import VARIANTS, record_and_diagnose
 
 from cosim.contract import plugins
-
-from plant_variants import VARIANTS, record_and_diagnose
 
 DATA = Path(__file__).parent / "data"
 

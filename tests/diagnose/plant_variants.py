@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
-SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
+from cosim_plugins.resources import SCENARIOS_DIR
+
+SCENARIO = SCENARIOS_DIR / "diagnose" / "plain.yaml"
 PLANT = "components.plant.params"
 DURATION_S = 40
 FIT_WINDOWS = 350  # half the default: the suite stays fast; benchmarks/diagnose.py runs the default
@@ -24,8 +25,9 @@ VARIANTS = {
 def record_and_diagnose(job):
     """(variant, log paths, diagnosis result) of one variant: its four logs recorded into ``root``."""
     variant, root = job
-    from cosim_plugins.diagnose.pipeline import Settings, run as diagnose
     from cosim.runtime.runner import RunRequest, run
+    from cosim_plugins.diagnose.pipeline import Settings
+    from cosim_plugins.diagnose.pipeline import run as diagnose
 
     out = Path(root) / variant
     run(RunRequest(SCENARIO, out, [f"duration_s={DURATION_S}", *VARIANTS[variant]], progress=False))

@@ -6,7 +6,7 @@ hidden, one outside the library (water turning about an off-centre vertical
 axis) whose ``discovered_effect.py`` must cut the held-out error when
 refitted. The cases run two at a time (one core each). The anisotropic drag
 is left out: to first order it is the model's own lift term (c = 2 Cl0), and
-in this regime its remainder ranks behind a gradient force (README, *What the
+in this regime its remainder ranks behind a gradient force (docs/diagnose/validation.md, *What the
 data cannot tell apart*).
 """
 

@@ -8,10 +8,11 @@ import json
 from pathlib import Path
 
 import pytest
+from figure_checks import assert_labelled, spy_on_savefig
 from matplotlib.figure import Figure
 
 from cosim.cli import main
-from figure_checks import assert_labelled, spy_on_savefig
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -66,7 +67,8 @@ def test_validate_logs_are_the_held_out_data(plant_logs, tmp_path):
 
 
 def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagnosis, plant_logs, tmp_path):
-    """The README's walkthrough in quick form: the plant drifts at 3 mm/s; with 1.5 s between camera frames the
+    """The docs' walkthrough (docs/diagnose/walkthrough.md) in quick form: the plant drifts at 3 mm/s;
+    with 1.5 s between camera frames the
     filter on the model diagnose saved (with the flow) predicts each frame and tracks better than on the plain model
     `cosim fit` makes (40 s runs)."""
     from cosim_plugins.identify.model import load_model
@@ -81,8 +83,9 @@ def test_the_saved_effect_model_makes_the_kalman_filter_track_better(flow_diagno
     error = {}
     for name, path in (("plain", tmp_path / "plain" / "physical.npz"), ("with_flow", with_flow)):
         out = tmp_path / name
-        assert main(["run", str(ROOT / "scenarios" / "flow_kf_sweep.yaml"), "--out", str(out), "--quiet",
-                     "--set", "sweep={}", "--set", "duration_s=40", "--set", f"components.estimator.params.model={path}",
+        assert main(["run", str(SCENARIOS_DIR / "flow_kf_sweep.yaml"), "--out", str(out), "--quiet",
+                     "--set", "sweep={}", "--set", "duration_s=40",
+                     "--set", f"components.estimator.params.model={path}",
                      "--set", "components.camera.params.interval_s=1.5"]) == 0
         summary = json.loads((out / "summary.json").read_text())
         error[name] = (summary["prediction_error_mm"]["rmse"], summary["tracking_error_mm"]["mean"])

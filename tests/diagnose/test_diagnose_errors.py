@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from cosim.cli import main
-from cosim_plugins.raw_log import write_log
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose.pipeline import Settings, run
 from cosim_plugins.identify.effect import load_effect_files
+from cosim_plugins.raw_log import write_log
 
 DATA = Path(__file__).parent / "data"
 

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from plant_variants import FIT_WINDOWS
 
 from cosim_plugins.diagnose.pipeline import Settings, run
-from plant_variants import FIT_WINDOWS
 
 HIDDEN = ["background_flow", "wall_drag", "gradient_force", "quadratic_drag"]
 

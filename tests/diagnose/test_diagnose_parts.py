@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cosim.contract.plugins import lookup
+from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
+from cosim_plugins.diagnose.pipeline import velocity_time_constant
 from cosim_plugins.identify import synthetic as syn
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import check_effect, known_effects
 from cosim_plugins.identify.joint import JointModel
-from cosim_plugins.diagnose.pipeline import velocity_time_constant
-from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.identify.timeline import Timeline
-from cosim.contract.plugins import lookup
 
 LIBRARY = {"background_flow", "wall_drag", "step_out", "actuation_lag", "gradient_force", "anisotropic_drag",
            "quadratic_drag", "sensor_latency"}
@@ -113,10 +113,9 @@ def test_noise_estimate_and_floor_of_a_perfect_model(synthetic):
 
 
 def test_time_block_split_keeps_halves_apart():
-    from cosim_plugins.diagnose.pipeline import BLOCK_S, split_logs
-
-
     from dataclasses import dataclass
+
+    from cosim_plugins.diagnose.pipeline import BLOCK_S, split_logs
 
     @dataclass
     class L:

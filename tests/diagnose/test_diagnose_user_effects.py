@@ -27,9 +27,9 @@ def test_example_effect_file_explains_the_plant_wall_drag(plant_logs, fresh_plug
 def swirl_logs(tmp_path_factory):
     """Synthetic logs (the paper's model as the plant) with water turning about z at 0.12 rad/s."""
     from cosim.contract import plugins
+    from cosim.contract.plugins import lookup
     from cosim_plugins.identify import synthetic as syn
     from cosim_plugins.identify.effect import load_effect_files, resolve
-    from cosim.contract.plugins import lookup
 
     plugins.reset()
     load_effect_files([DATA / "swirl_effect.py"])

@@ -10,17 +10,17 @@ never names the wrong effect.
 from __future__ import annotations
 
 import csv
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cosim.runtime.runner import RunRequest, run as run_scenario
+from cosim.runtime.runner import RunRequest
+from cosim.runtime.runner import run as run_scenario
 from cosim_plugins.diagnose.pipeline import Settings, run
 from cosim_plugins.diagnose.report import write_outputs
+from cosim_plugins.resources import SCENARIOS_DIR
 
-ROOT = Path(__file__).resolve().parents[2]
-SCENARIO = ROOT / "scenarios" / "diagnose" / "plain.yaml"
+SCENARIO = SCENARIOS_DIR / "diagnose" / "plain.yaml"
 CAMERA = "components.camera.params"
 PLANT = "components.plant.params"
 LATE = [f"{CAMERA}.latency_s=0.08"]

@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from cosim import ComponentError
 from cosim.cli import main
-from cosim_plugins.identify.model import load_model
 from cosim.contract.plugins import lookup
+from cosim_plugins.identify.model import load_model
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "feedback_sweep.yaml"
+SCENARIO = SCENARIOS_DIR / "feedback_sweep.yaml"
 Q_DIAG = [1e-3, 1e-3, 1e-3, 4.0, 4.0, 4.0]
 
 

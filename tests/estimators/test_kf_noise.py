@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim_plugins.raw_log import write_log
-from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.estimators.ekf import MultiStepEKF
 from cosim_plugins.estimators.noise import camera_variance, fit_process_noise
+from cosim_plugins.identify.dataset import Dataset
+from cosim_plugins.raw_log import write_log
 
 _spec = importlib.util.spec_from_file_location("kf_linear_plugin_n", Path(__file__).with_name("linear_plugin.py"))
 linear_plugin = importlib.util.module_from_spec(_spec)

@@ -13,8 +13,9 @@ import pytest
 from scipy.stats import chi2
 
 from cosim.runtime.runner import RunRequest, run
+from cosim_plugins.resources import SCENARIOS_DIR
 
-SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "feedback_sweep.yaml"
+SCENARIO = SCENARIOS_DIR / "feedback_sweep.yaml"
 
 
 @pytest.fixture(scope="module")

@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from recording_checks import recorded_entities
 from scipy.linalg import expm
 
-from cosim.contract import plugins
 from cosim.cli import main
-from recording_checks import recorded_entities
+from cosim.contract import plugins
 
 SCENARIO = Path(__file__).parents[2] / "examples" / "dc_motor" / "scenario.yaml"
 

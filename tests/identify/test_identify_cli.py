@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 
 import pytest
+from figure_checks import assert_labelled
 
 from cosim.cli import main
-from figure_checks import assert_labelled
 
 
 def test_fit_then_compare(small_logs, tmp_path, capsys, saved_figures):

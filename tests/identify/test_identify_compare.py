@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from cosim_plugins.raw_log import HEADER
 from cosim_plugins.identify.compare import compare, format_table
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.model import Model
+from cosim_plugins.raw_log import HEADER
 
 # Positions in mm (the file holds metres); row 4 has no measurement.
 POSITIONS_MM = [(0, 0, 0), (1, 0, 0), (2, 1, 0), (3, 1, 1), None, (5, 2, 1), (6, 2, 2), (7, 3, 2),

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim_plugins.raw_log import HEADER, read_log, write_log
 from cosim.contract.errors import UserError
+from cosim_plugins.raw_log import HEADER, read_log, write_log
 
 
 def _rows(n=10, p_scale=1e-3):

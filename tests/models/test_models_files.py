@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from cosim.contract.errors import UserError
-from cosim_plugins.identify.model import load_model
 from cosim.contract.plugins import registry
+from cosim_plugins.identify.model import load_model
 from cosim_plugins.models.mlp import MLPModel
 from cosim_plugins.models.physical import PhysicalModel
 from cosim_plugins.models.sindy import SindyLinear, SindyNonlinear

@@ -11,7 +11,7 @@ from cosim_plugins.plant.build import build_fmu
 from cosim_plugins.plant.fmu_component import FmuPlant
 
 MU0 = 4e-7 * math.pi
-# Default coil data (fmus/swimmer_plant/README.md)
+# Default coil data (cosim_plugins/plant/swimmer_plant/README.md)
 TURNS, R_IN, R_OUT, THICK, HALF = 795, 0.180, 0.215, 0.040, 0.150
 R_COIL, L_COIL, C_COIL = 12.9, 0.411, 430e-6
 

@@ -64,3 +64,21 @@ def test_command_line(monkeypatch, tmp_path, capsys):
     monkeypatch.setenv("PATH", str(tmp_path))
     assert build.main(["--out", str(tmp_path / "other.fmu")]) == 2
     assert "apt-get install gcc" in capsys.readouterr().err
+
+
+def test_the_default_fmu_is_built_once_into_the_user_cache_keyed_by_the_sources(monkeypatch, tmp_path):
+    """No checkout needed: without COSIM_FMU the FMU is built from the package's own sources into
+    $XDG_CACHE_HOME/cosim-swimmer/fmu, once; other sources get a file of their own."""
+    monkeypatch.delenv("COSIM_FMU", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    fmu = build.ensure_fmu()
+    assert fmu.parent == tmp_path / "cache" / "cosim-swimmer" / "fmu"
+    assert fmu.name == f"swimmer_plant-{build.sources_digest()}.fmu" and fmu.is_file()
+    built = fmu.stat().st_mtime_ns
+    assert build.ensure_fmu() == fmu and fmu.stat().st_mtime_ns == built   # found, not rebuilt
+    assert build.main([]) == 0 and fmu.stat().st_mtime_ns == built          # `make fmu` likewise
+    changed = tmp_path / "changed.c"
+    changed.write_text("/* another version of the sources */\n")
+    sources = build.source_files()
+    monkeypatch.setattr(build, "source_files", lambda: [*sources, changed])
+    assert build.default_fmu() != fmu

@@ -7,10 +7,9 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from sweep_checks import FAULTY, TOY, logs_of, rows_of, stop_a_parallel_sweep, sweep_arg, without_timings
 
 from cosim.cli import main
-
-from sweep_checks import FAULTY, TOY, logs_of, rows_of, stop_a_parallel_sweep, sweep_arg, without_timings
 
 pytest.importorskip("distributed", reason="the cluster extra (dask[distributed]) is not installed")
 
@@ -25,7 +24,8 @@ def test_a_sweep_on_a_local_dask_cluster_gives_the_serial_rows_and_logs(tmp_path
     assert without_timings(rows) == without_timings(rows_of(serial))  # host and code fingerprint included
     assert logs_of(dask) == logs_of(serial)
     for row in rows:  # the whole run folder came back from the worker's scratch folder
-        assert {"summary.json", "log.csv", "trace.npz", "recording.rrd"} <= {f.name for f in (dask / row["dir"]).iterdir()}
+        written = {f.name for f in (dask / row["dir"]).iterdir()}
+        assert {"summary.json", "log.csv", "trace.npz", "recording.rrd"} <= written
 
 
 def test_a_run_that_kills_its_dask_worker_is_one_failed_row(tmp_path):

@@ -12,11 +12,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from sweep_checks import TOY
 
 from cosim.cli import main
 from cosim.runtime.runner import RunRequest, run
-
-from sweep_checks import TOY
 
 REMOTE = ("camera", "estimator")  # on host two; plant and controller run here
 
@@ -119,7 +118,8 @@ def test_hosts_file_errors_name_the_file_the_field_and_the_line(tmp_path, capsys
                      "  one: {address: 127.0.0.1, cert: certs/one.pem, key: certs/one.key}\n")
     assert main(common) == 2
     assert f"{hosts}: tls.ca (line 1): {tmp_path}/certs/ca.pem does not exist" in capsys.readouterr().err
-    hosts.write_text("scheduler: {host: one}\nhosts:\n  one: {address: 127.0.0.1}\ncomponents:\n  camera: {host: lab}\n")
+    hosts.write_text("scheduler: {host: one}\nhosts:\n  one: {address: 127.0.0.1}\n"
+                     "components:\n  camera: {host: lab}\n")
     assert main(common) == 2
     assert f"{hosts}: components.camera.host (line 5): no host 'lab' under hosts (have: one)" in capsys.readouterr().err
     assert main(["run", str(TOY), "--hosts", str(hosts), "--out", str(tmp_path / "run")]) == 2

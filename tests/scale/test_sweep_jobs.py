@@ -9,11 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sweep_checks import FAULTY, TOY, logs_of, rows_of, stop_a_parallel_sweep, sweep_arg, without_timings
 
 from cosim.cli import main
 from cosim.scale.executors import cpu_groups
-
-from sweep_checks import FAULTY, TOY, logs_of, rows_of, stop_a_parallel_sweep, sweep_arg, without_timings
 
 INTERVALS = sweep_arg({"components.camera.params.interval_s": [0.02, 0.04, 0.06, 0.08]})
 

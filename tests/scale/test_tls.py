@@ -7,9 +7,9 @@ import socket
 import time
 from pathlib import Path
 
+from cosim.cli import main
 from cosim.runtime import bus
 from cosim.runtime.bus import TlsFiles
-from cosim.cli import main
 
 KEY = "cosim/run1/coil_driver/coil_voltage_amp"
 
@@ -42,7 +42,8 @@ def test_a_peer_without_the_runs_certificate_cannot_join_or_publish(tmp_path):
         "plain": bus.open_session(connect=[f"tcp/127.0.0.1:{port}"]),
     }
     heard: list[bytes] = []  # what a foreign peer could read of the run
-    foreign_sub = peers["foreign"].declare_subscriber("cosim/**", lambda sample: heard.append(sample.payload.to_bytes()))
+    foreign_sub = peers["foreign"].declare_subscriber("cosim/**",
+                                                      lambda sample: heard.append(sample.payload.to_bytes()))
     deadline = time.monotonic() + 10
     while not list(peers["member"].info.peers_zid()) and time.monotonic() < deadline:
         time.sleep(0.05)

@@ -27,6 +27,7 @@ class SpeedSchedule(Component):
 
     inputs = (Port("omega", (3,), "rad/s", "the controller's rotation vector"),)
     outputs = (Port("omega", (3,), "rad/s", "same direction, scheduled magnitude"),)
+    params_spec = PARAMS
 
     def setup(self, params, rng):
         self.p = read_params(params, PARAMS)

@@ -1,0 +1,229 @@
+"""Regenerate every command output the docs show, and check that none is stale.
+
+A page shows a command's output between markers::
+
+    <!-- output: NAME -->
+    ```text
+    $ cosim scenarios
+    ...
+    ```
+    <!-- /output -->
+
+and :data:`BLOCKS` says how to make output ``NAME``: the shell lines to run (in a fresh folder,
+with the ``cosim`` of the Python running this script first on the PATH), which of them to
+show, and what of their output to keep. ``python tools/doc_outputs.py [NAME...]`` runs them
+and rewrites every marked block of the README and of ``docs/`` (all when no name is given).
+
+Quick blocks (a few seconds) are re-run by the test ``tests/docs/test_doc_outputs.py``,
+which fails when a page differs from a fresh run (wall-clock figures masked). Slow blocks
+(a minute or more: the diagnose walkthrough) carry the digest of the code they depend on
+in their marker (``<!-- output: NAME digest=... -->``); the test recomputes it and fails
+when that code changed since the block was made, naming the command that remakes it.
+The paper's results (``docs/results.md``) are ``cosim reproduce --docs``'s, checked alike.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import hashlib
+import os
+import re
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = ("README.md", "docs")
+MARK = re.compile(r"<!-- output: (?P<name>[\w-]+)(?: digest=(?P<digest>\w+))? -->\n(?P<body>.*?)<!-- /output -->",
+                  re.S)
+
+
+@dataclass(frozen=True)
+class Block:
+    """How to make one output: ``commands`` run in order in one folder; those in ``show`` (indexes;
+    default all) appear as ``$ command`` and their output; ``keep`` trims a shown command's output."""
+
+    commands: tuple[str, ...]
+    show: tuple[int, ...] | None = None
+    keep: Callable[[str], str] = lambda text: text
+    #: slow blocks are not re-run by the test; the code they depend on is (modules and files, by digest)
+    slow: bool = False
+    depends: tuple[str, ...] = ()
+    #: blocks made in the same folder as this one, first (their commands, not shown)
+    after: str | None = None
+    extra_env: dict = field(default_factory=dict)
+
+
+def lines_between(first: str, last: str | None = None) -> Callable[[str], str]:
+    """Keep the output from the line starting with ``first`` to the one starting with ``last`` (included)."""
+    def keep(text: str) -> str:
+        lines = text.splitlines()
+        i = next(i for i, line in enumerate(lines) if line.startswith(first))
+        j = next((j for j in range(i, len(lines)) if last and lines[j].startswith(last)), len(lines) - 1)
+        return "\n".join(lines[i:j + 1])
+    return keep
+
+
+def diagnose_table_and_verdict(text: str) -> str:
+    """A diagnosis as the walkthrough shows it: the error table, the ranking, the legend and the verdict."""
+    return lines_between("held-out error [mm]", "verdict:")(text)
+
+
+HIDDEN_FLOW = ("--set components.plant.params.background_flow_on=true "
+               "--set components.plant.params.flow_x=0.003")
+DIAGNOSE_CODE = ("cosim_plugins.identify", "cosim_plugins.effects", "cosim_plugins.models", "cosim_plugins.plant",
+                 "cosim_plugins/scenarios/diagnose")
+
+BLOCKS: dict[str, Block] = {
+    "first-steps": Block(("cosim run racetrack --set components.camera.params.interval_s=0.1 "
+                          "--out runs/frames_100ms",)),
+    "scenarios": Block(("cosim scenarios",)),
+    "validate": Block(("cosim validate racetrack",)),
+    "swap-controller": Block(("cosim run racetrack --set components.controller.plugin=controller.mrac "
+                              "--out runs/mrac",)),
+    "profiles": Block(("cosim plugins",), keep=lambda text: lines_between("profiles:")(text).split("\nviews:")[0]),
+    "diagnose-walkthrough": Block(
+        (f"cosim run diagnose/plain --out runs/diag_flow --quiet {HIDDEN_FLOW}",
+         "cosim diagnose runs/diag_flow/runs/*/log.csv --out runs/diag_flow/diagnosis"),
+        show=(1,), keep=diagnose_table_and_verdict, slow=True, depends=DIAGNOSE_CODE),
+    "diagnose-added": Block(
+        ("cosim diagnose runs/diag_flow/runs/*/log.csv --add background_flow --out runs/diag_flow/added",),
+        keep=lines_between("held-out error [mm]", "noise floor"), slow=True, depends=DIAGNOSE_CODE,
+        after="diagnose-walkthrough"),
+}
+
+#: Wall-clock figures, masked when a page is compared with a fresh run.
+WALL_CLOCK = (re.compile(r"simulated in [\d.]+ s \(\d+x real time\)"), re.compile(r"\d+(\.\d+)? s wall"))
+
+
+def mask(text: str) -> str:
+    """``text`` with its wall-clock figures replaced, for comparing two runs' outputs."""
+    for pattern in WALL_CLOCK:
+        text = pattern.sub("<wall clock>", text)
+    return text
+
+
+def pages() -> list[Path]:
+    """The Markdown pages that may mark outputs: the README and every page under ``docs/``."""
+    out = []
+    for item in PAGES:
+        path = ROOT / item
+        out += sorted(path.rglob("*.md")) if path.is_dir() else [path]
+    return out
+
+
+def used_blocks() -> dict[str, list[Path]]:
+    """Every marked output's name and the pages showing it."""
+    found: dict[str, list[Path]] = {}
+    for page in pages():
+        for match in MARK.finditer(page.read_text()):
+            found.setdefault(match["name"], []).append(page)
+    return found
+
+
+def digest(block: Block) -> str:
+    """Hash of the code a slow block depends on: each module's syntax tree without docstrings and imports
+    (so import order and docstrings, which change no output, leave it), each data file's bytes."""
+    h = hashlib.sha256(" ".join(block.commands).encode())
+    for name in block.depends:
+        path = ROOT / name if "/" in name else ROOT / name.replace(".", "/")
+        if not path.exists():
+            raise SystemExit(f"output depends on {name}, which is no more ({path}): update BLOCKS in {__file__}")
+        files = sorted(path.rglob("*")) if path.is_dir() else [path]
+        for file in files:
+            if file.suffix == ".py":
+                h.update(file.relative_to(ROOT).as_posix().encode() + _code_shape(file.read_text()).encode())
+            elif file.suffix in (".yaml", ".c", ".h", ".xml"):
+                h.update(file.relative_to(ROOT).as_posix().encode() + file.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def _code_shape(source: str) -> str:
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list):
+            body[:] = [n for n in body if not isinstance(n, (ast.Import, ast.ImportFrom))
+                       and not (isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant)
+                                and isinstance(n.value.value, str))]
+    return ast.dump(tree)
+
+
+def environment() -> dict[str, str]:
+    """This Python's scripts first on the PATH; no display; the package as installed."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
+    env["COLUMNS"] = "110"
+    return env
+
+
+def run_block(name: str, folder: Path, done: set[str] | None = None) -> str:
+    """Run block ``name`` (and the one it comes after) in ``folder``; the text its marker holds."""
+    done = set() if done is None else done
+    block = BLOCKS[name]
+    if block.after and block.after not in done:
+        run_block(block.after, folder, done)
+    shown = []
+    for i, command in enumerate(block.commands):
+        print(f"[{name}] $ {command}", file=sys.stderr, flush=True)
+        result = subprocess.run(["bash", "-c", command], cwd=folder, env=environment(),
+                                capture_output=True, text=True)
+        if result.returncode != 0:
+            raise SystemExit(f"[{name}] `{command}` failed (exit {result.returncode}):\n{result.stderr}")
+        if block.show is None or i in block.show:
+            out = block.keep(result.stdout.rstrip())
+            shown.append(f"$ {command}\n{out}")
+    done.add(name)
+    return "```text\n" + "\n\n".join(shown).replace(str(ROOT), ".") + "\n```\n"
+
+
+def marker(name: str) -> str:
+    """The opening marker of output ``name`` (with its code digest when it is slow)."""
+    block = BLOCKS[name]
+    return f"<!-- output: {name}{f' digest={digest(block)}' if block.slow else ''} -->\n"
+
+
+def write(outputs: dict[str, str]) -> list[Path]:
+    """Put the made outputs into every page marking them; returns the pages changed."""
+    changed = []
+    for page in pages():
+        text = page.read_text()
+        new = MARK.sub(lambda m: (marker(m["name"]) + outputs[m["name"]] + "<!-- /output -->")
+                       if m["name"] in outputs else m[0], text)
+        if new != text:
+            page.write_text(new)
+            changed.append(page)
+    return changed
+
+
+def make(names: list[str]) -> dict[str, str]:
+    """Make the outputs ``names`` in one fresh folder; ``{name: the text its marker holds}``."""
+    outputs: dict[str, str] = {}
+    with tempfile.TemporaryDirectory(prefix="cosim-docs-") as tmp:
+        done: set[str] = set()
+        for name in names:
+            outputs[name] = run_block(name, Path(tmp), done)
+    return outputs
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line: make the named outputs (or all, or the quick ones) and write them into the pages."""
+    parser = argparse.ArgumentParser(description="Regenerate the command outputs the docs show.")
+    parser.add_argument("names", nargs="*", help=f"outputs to make (default: all): {', '.join(BLOCKS)}")
+    parser.add_argument("--quick", action="store_true", help="only the quick ones (what the test re-runs)")
+    args = parser.parse_args(argv)
+    unknown = [n for n in args.names if n not in BLOCKS]
+    if unknown:
+        parser.error(f"unknown output(s) {', '.join(unknown)}; known: {', '.join(BLOCKS)}")
+    names = args.names or [n for n, b in BLOCKS.items() if not (args.quick and b.slow)]
+    for page in write(make(names)):
+        print(f"updated {page.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
