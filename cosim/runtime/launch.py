@@ -58,12 +58,12 @@ def node_commands(scenario_file: Path, overrides: list[str], order: list[str], r
                   run_dir: Path, fingerprint: Fingerprint, cpus: str | None, free_endpoint,
                   hosts: HostsPlan | None) -> list[NodeCommand]:
     """A command per component in ``order``: without ``hosts``, every node on this machine listening on
-    ``free_endpoint()`` and running on ``cpus``; with them, as placed there (a node started here without
+    ``free_endpoint(name)`` (a unix socket of the run's private folder) and running on ``cpus``; with them, as placed there (a node started here without
     CPUs of its own runs on ``cpus``)."""
     commands, earlier = [], [scheduler]
     for name in order:
         place = hosts.nodes[name] if hosts else None
-        listen = place.listen if place else free_endpoint()
+        listen = place.listen if place else free_endpoint(name)
         remote = place is not None and place.launch != "local"
         path = (lambda p: _relative(p)) if remote else (lambda p: str(Path(p).resolve()))
         args = ["node", name, path(scenario_file), "--run-id", run_id, "--listen", listen,

@@ -75,13 +75,38 @@ class _Node:
         self.done_ticks: list[int] = []  # steps not reported yet, and their outputs
         self.done_values: list = []
         self.done_lock = threading.Lock()  # held briefly: a flush reports even past a hung step
+        self.periods = {src: per for src, _, per, _ in edges}
+        self.accepted: dict[str, int] = {}  # per producer, the last tick whose outputs were accepted
+        self.security_events = 0  # samples dropped by on_data
 
     def on_data(self, producer: str, sample: zenoh.Sample) -> None:
-        """A step's outputs of ``producer``."""
-        tick = bus.decode_tick(sample.attachment.to_bytes())
+        """A step's outputs of ``producer``, accepted once per tick: a producer steps its ticks in order,
+        so a stamp not past the last one accepted (a replay, a second sample for a tick), one off the
+        producer's period, or a payload of the wrong size is dropped and reported as a security event."""
+        try:
+            tick = bus.decode_tick(sample.attachment.to_bytes())
+        except Exception:  # no or a malformed stamp
+            tick = None
         with self.lock:
-            self.store.store_payload(producer, [tick], sample.payload.to_bytes())
+            last = self.accepted.get(producer, -2)
+            period = self.periods.get(producer, 1)
+            if tick is None or tick <= last or (tick != -1 and tick % period):
+                self._rejected(producer, tick, "a stamp already accepted or out of order" if tick is not None
+                               else "no tick stamp")
+                return
+            try:
+                self.store.store_payload(producer, [tick], sample.payload.to_bytes())
+            except ValueError as exc:
+                self._rejected(producer, tick, str(exc))
+                return
+            self.accepted[producer] = tick
             self._advance()
+
+    def _rejected(self, producer: str, tick, why: str) -> None:
+        self.security_events += 1
+        if self.security_events <= 10:  # bounded: a flood must not fill the log
+            print(f"cosim node: security: dropped a sample of {producer}'s outputs for tick {tick}: {why}",
+                  file=sys.stderr, flush=True)
 
     def on_tick(self, sample: zenoh.Sample) -> None:
         msg = bus.decode_json(sample.payload.to_bytes())

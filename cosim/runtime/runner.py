@@ -20,7 +20,6 @@ import json
 import os
 import secrets
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -36,6 +35,7 @@ from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_node
 from cosim.scenario.paths import make_path
 from cosim.runtime.placement import node_cpus
 from cosim.runtime.portcache import PortCache, PortStore
+from cosim.runtime.private_bus import PrivateEndpoints
 from cosim.record.recorder import TraceRecorder
 from cosim.scenario.schema import Scenario, load_scenario
 from cosim.runtime.scheduler import (WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest,
@@ -129,7 +129,9 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
                                        "note": "written when the run started; a run that ends rewrites it"})
     plan = load_hosts(request.hosts, scenario) if request.processes and request.hosts else None
-    endpoint = (plan.scheduler_listen if plan else _loopback_endpoint()) if request.processes else None
+    # one machine: unix sockets in a 0700 folder of this run, which no other user can reach
+    private = PrivateEndpoints() if request.processes and not plan else None
+    endpoint = (plan.scheduler_listen if plan else private.endpoint("scheduler")) if request.processes else None
     session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None) if endpoint \
         else bus.open_session()
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
@@ -144,7 +146,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
             group = RemoteGroup(session, run_id, wiring, cache)
             expected = fingerprint(scenario, request.scenario_file)
             commands = node_commands(request.scenario_file, request.overrides, wiring.order, run_id, endpoint,
-                                     out, expected, cpus, _loopback_endpoint, plan)
+                                     out, expected, cpus, private.endpoint if private else None, plan)
             start_nodes(commands, group, expected, procs, plan.wait_s if plan else NODE_START_TIMEOUT_S, stop)
         else:
             steppers = {}
@@ -172,6 +174,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
         if isinstance(cache, PortCache):
             cache.close()
         session.close()
+        if private is not None:
+            private.close()
     total_wall = time.perf_counter() - wall0
     if late_faults:
         error = with_close_faults(error, late_faults)
@@ -233,13 +237,6 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         "total_wall_time_s": total_wall_s,
         "files": {k: v.name for k, v in recorder.files.items()},
     }
-
-
-def _loopback_endpoint() -> str:
-    """A free TCP endpoint on loopback: where a node on this machine listens."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 class _progress_bar:

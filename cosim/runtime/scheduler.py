@@ -181,15 +181,28 @@ class RemoteGroup:
         self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}
         # (header, payload) of every reply; a Python queue, as zenoh's own blocking recv polls
         self._inbox: queue.SimpleQueue[tuple[bytes, bytes]] = queue.SimpleQueue()
-        self._replies = session.declare_subscriber(
-            bus.ctl_key(run_id, "*", "reply"),
-            lambda sample: self._inbox.put((sample.attachment.to_bytes(), sample.payload.to_bytes())))
+        self.security_events: list[str] = []  # replies dropped by _on_reply
+        self._replies = session.declare_subscriber(bus.ctl_key(run_id, "*", "reply"), self._on_reply)
         self._done = {n: -1 for n in names}  # the last tick each node has reported
         self._joined: set[str] = set()  # the nodes that said they were ready (set up, with the run's fingerprint)
         self._alive = session.liveliness().declare_subscriber(bus.alive_key(run_id), self._on_alive)
         # the nodes stop (their outputs made safe) when this token goes: this process ended
         self._token = session.liveliness().declare_token(bus.scheduler_alive_key(run_id))
         self.closed = False
+
+    def _on_reply(self, sample: zenoh.Sample) -> None:
+        """Queue a node's reply; one whose header names another node than its key is dropped (a node
+        speaks for itself only: with access control, its key is the only one it may publish on)."""
+        header = sample.attachment.to_bytes() if sample.attachment is not None else b""
+        sender = str(sample.key_expr).rsplit("/", 2)[-2]
+        try:
+            named = bus.decode_json(header).get("name")
+        except Exception:
+            named = None
+        if named != sender or sender not in self._cmd_pubs:
+            self.security_events.append(f"dropped a reply on {sample.key_expr} naming {named!r}")
+            return
+        self._inbox.put((header, sample.payload.to_bytes()))
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).rsplit("/", 1)[-1]
