@@ -78,6 +78,9 @@ def add_commands(sub) -> None:
     p.add_argument("--tls-ca", type=Path, default=None, metavar="PEM", help="the run's CA certificate (mutual TLS)")
     p.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this host's certificate")
     p.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this host's private key")
+    p.add_argument("--rights", default=None, metavar="SCHED;HOST=COMP,...",
+                   help="with TLS: the components each host runs, by its certificate's name (cosim.scale.rights); "
+                        "what a peer may publish and subscribe to here")
     p.set_defaults(func=cmd_node)
 
     p = sub.add_parser("certs", help="make a run's CA and one certificate per host of a HOSTS.yaml (mutual TLS)")
@@ -236,9 +239,14 @@ def cmd_node(args) -> int:
         expected = Fingerprint.decode(args.fingerprint) if args.fingerprint else None
     except ValueError as exc:
         raise UserError(f"--fingerprint: {exc}") from None
+    from cosim.scale.rights import parse_rights
+
+    rights = parse_rights(args.rights) if args.rights else None
+    if rights is not None and not all(tls_args):
+        raise UserError("--rights applies to TLS links: give --tls-ca, --tls-cert and --tls-key too")
     return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen,
                  args.cpus, args.run_dir, expected, TlsFiles(*tls_args) if all(tls_args) else None,
-                 args.scenario)
+                 args.scenario, rights)
 
 
 def cmd_certs(args) -> int:

@@ -178,7 +178,7 @@ class _Node:
 def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str],
           listen: list[str], cpus: str | None = None, run_dir: Path | None = None,
           expected: Fingerprint | None = None, tls: bus.TlsFiles | None = None,
-          scenario_file: Path | None = None) -> int:
+          scenario_file: Path | None = None, rights=None) -> int:
     """Serve component ``name`` until told to stop; returns an exit status.
 
     ``connect``: the scheduler's endpoint and those of the nodes started
@@ -187,14 +187,21 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     ``run_dir``: the run's output folder, for a component that writes files of its own;
     ``expected``: the run's fingerprint: with another of its own the node refuses to join
     (exit status 2); ``tls``: this host's files for mutual TLS with the run's other machines;
-    ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint).
+    ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint);
+    ``rights``: with ``tls``, the run's per-host rights (:class:`cosim.scale.rights.Rights`), which this
+    node's session enforces on what its peers send it.
     """
     if cpus is not None:
         parse_cpu_list(cpus)  # a bad list fails before anything starts
     if tls is not None:
         tls.check(f"cosim node {name}")
     mine = fingerprint(scenario, scenario_file or Path("."))
-    session = bus.open_session(listen=listen, connect=connect, tls=tls)
+    access = None
+    if rights is not None:
+        from cosim.scale.rights import access_control
+
+        access = access_control(run_id, wiring, rights)
+    session = bus.open_session(listen=listen, connect=connect, tls=tls, access=access)
     reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
     edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
 

@@ -31,6 +31,7 @@ from typing import Any
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
 from cosim.scale.hosts import load_hosts
+from cosim.scale.rights import access_control, format_rights, rights_of
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
 from cosim.scenario.paths import make_path
 from cosim.runtime.placement import node_cpus
@@ -132,8 +133,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     # one machine: unix sockets in a 0700 folder of this run, which no other user can reach
     private = PrivateEndpoints() if request.processes and not plan else None
     endpoint = (plan.scheduler_listen if plan else private.endpoint("scheduler")) if request.processes else None
-    session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None) if endpoint \
-        else bus.open_session()
+    rights = rights_of(plan) if plan and plan.scheduler_tls else None  # TLS: rights by certificate name
+    access = access_control(run_id, wiring, rights) if rights else None
+    session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None, access=access) \
+        if endpoint else bus.open_session()
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
     cache = PortStore(wiring.outputs, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, wiring.outputs)
     procs: list[subprocess.Popen] = []
@@ -146,7 +149,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
             group = RemoteGroup(session, run_id, wiring, cache)
             expected = fingerprint(scenario, request.scenario_file)
             commands = node_commands(request.scenario_file, request.overrides, wiring.order, run_id, endpoint,
-                                     out, expected, cpus, private.endpoint if private else None, plan)
+                                     out, expected, cpus, private.endpoint if private else None, plan,
+                                     format_rights(rights) if rights else None)
             start_nodes(commands, group, expected, procs, plan.wait_s if plan else NODE_START_TIMEOUT_S, stop)
         else:
             steppers = {}
