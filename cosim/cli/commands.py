@@ -56,7 +56,11 @@ def add_commands(sub) -> None:
     p.add_argument("--web", action="store_true",
                    help="serve rerun's web viewer instead of opening a window (no display needed; open the "
                         "address it prints in a browser, through an SSH tunnel from another machine)")
-    p.add_argument("--port", type=int, default=9090, help="the web viewer's HTTP port with --web (default 9090)")
+    p.add_argument("--port", type=int, default=0,
+                   help="the web viewer's HTTP port with --web (default: a free port)")
+    p.add_argument("--bind", default="127.0.0.1", metavar="ADDRESS",
+                   help="the address the web viewer listens on with --web (default 127.0.0.1: this machine only; "
+                        "0.0.0.0 opens it to the network, unauthenticated)")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
@@ -202,9 +206,9 @@ def cmd_replay(args) -> int:
     if not Path(viewer).exists():
         raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
     if args.web:
-        print(f"serving {rrd} in rerun's web viewer on port {args.port}: open the http address below in a "
-              "browser (Ctrl-C stops)", flush=True)
-        return _call_viewer([viewer, "--serve-web", "--web-viewer-port", str(args.port), *files])
+        from cosim.record.web_viewer import serve_web
+
+        return serve_web(viewer, files, args.bind, args.port)
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise UserError(f"no display to open the viewer on ($DISPLAY and $WAYLAND_DISPLAY are unset): "
                         f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
