@@ -33,9 +33,14 @@ def add_commands(sub) -> None:
                    help="with --processes: place the nodes on machines (host, endpoint, CPUs per component; "
                         "launched over ssh or printed to start by hand; mutual TLS between machines)")
     add_jobs_argument(p, "a sweep's runs at a time, each in a worker process")
-    p.add_argument("--executor", default=None, metavar="local|dask|dask://HOST:PORT",
+    p.add_argument("--executor", default=None, metavar="local|dask|dask://tls://HOST:PORT",
                    help="where a sweep's runs execute: local worker processes (default), a local Dask "
-                        "cluster of --jobs workers, or the Dask scheduler at HOST:PORT (needs the cluster extra)")
+                        "cluster of --jobs workers, or the Dask scheduler at HOST:PORT over mutual TLS "
+                        "(dask://HOST:PORT, plain TCP, on loopback only; needs the cluster extra)")
+    p.add_argument("--tls-ca", type=Path, default=None, metavar="PEM",
+                   help="with --executor dask://tls://...: the CA certificate the scheduler's must be signed by")
+    p.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this client's certificate")
+    p.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this client's private key")
     p.add_argument("--run-timeout", type=float, default=None, metavar="S",
                    help="a sweep's run still going after S seconds of wall time is stopped and counted failed")
     p.set_defaults(func=cmd_run)
@@ -114,9 +119,18 @@ def cmd_run(args) -> int:
                         "so its sweep runs one at a time (no --jobs, no --executor)")
     if args.run_timeout is not None and not args.run_timeout > 0:
         raise UserError(f"--run-timeout {args.run_timeout:g}: the time must be > 0 [s]")
+    tls_args = (args.tls_ca, args.tls_cert, args.tls_key)
+    if any(tls_args) and not all(tls_args):
+        raise UserError("--tls-ca, --tls-cert and --tls-key go together (mutual TLS needs all three)")
+    if any(tls_args) and not (args.executor or "").startswith("dask://tls://"):
+        raise UserError("--tls-ca, --tls-cert and --tls-key are for --executor dask://tls://HOST:PORT (a run "
+                        "over machines takes its certificates from its hosts file)")
+    from cosim.runtime.bus import TlsFiles
+
     summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
                              args.node_cpus or "auto", args.realtime, jobs=jobs, executor=args.executor,
-                             run_timeout_s=args.run_timeout, hosts=args.hosts))
+                             run_timeout_s=args.run_timeout, hosts=args.hosts,
+                             executor_tls=TlsFiles(*tls_args) if all(tls_args) else None))
     if not args.quiet:
         _print_run(summary, out)
     if summary.get("status") == "interrupted":

@@ -65,6 +65,8 @@ class RunRequest:
     #: where a sweep's runs execute: None (local worker processes when ``jobs`` > 1), ``local``,
     #: ``dask`` or ``dask://HOST:PORT`` (see :mod:`cosim.scale.executors`)
     executor: str | None = None
+    #: with ``executor`` ``dask://tls://HOST:PORT``: this client's files of the run's CA (``cosim certs``)
+    executor_tls: bus.TlsFiles | None = None
     #: a sweep's run still going after this many seconds of wall time is stopped and failed
     run_timeout_s: float | None = None
     #: with ``processes``: a HOSTS.yaml placing the nodes on machines (see :mod:`cosim.scale.hosts`)

@@ -49,7 +49,8 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
         from cosim.scale.executors import open_executor
 
         executor, own = open_executor(request.executor, request.jobs,
-                                      place=request.processes and request.node_cpus == "auto"), True
+                                      place=request.processes and request.node_cpus == "auto",
+                                      tls=request.executor_tls), True
     try:
         jobs = _jobs(combos, request, out, ships=bool(executor and executor.ships),
                      stop_event=getattr(executor, "stop_name", None))
