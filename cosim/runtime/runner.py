@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim.contract.errors import OutputWriteError
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
 from cosim.scale.hosts import load_hosts
@@ -40,7 +41,7 @@ from cosim.runtime.private_bus import PrivateEndpoints
 from cosim.record.recorder import TraceRecorder
 from cosim.scenario.schema import Scenario, load_scenario
 from cosim.runtime.scheduler import (WINDOW, LocalGroup, RemoteGroup, RunError, RunFault, Scheduler, StopRequest,
-                             with_close_faults)
+                             WriteError, with_close_faults)
 from cosim.runtime.stepper import Stepper, setup_component
 from cosim.record.summary import run_figures
 from cosim.runtime.wiring import build_wiring
@@ -126,6 +127,9 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     wiring = build_wiring(scenario)
     path = make_path(scenario.path.plugin, scenario.path.params) if scenario.path else None
     run_id = secrets.token_hex(4)
+    from cosim.record.rerun_log import set_aside_parts
+
+    set_aside_parts(out)  # an earlier run's parts are never merged into this run's recording
     recorder = TraceRecorder(scenario, wiring, out, path)
     recorder.open()
     realtime = request.realtime or scenario.realtime
@@ -154,6 +158,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
                                      out, expected, cpus, private.endpoint if private else None, plan,
                                      format_rights(rights) if rights else None)
             start_nodes(commands, group, expected, procs, plan.wait_s if plan else NODE_START_TIMEOUT_S, stop)
+            group.processes = dict(zip([c.component for c in commands if c.launch != "manual"], procs))
         else:
             steppers = {}
             group = LocalGroup(steppers)
@@ -170,7 +175,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     except RunError as exc:  # in set-up: nothing ran
         error = exc
     except BaseException as exc:  # set-up failed otherwise (or Ctrl-C before the handlers): say so, then raise
-        write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed",
+        write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed", "phase": "set-up",
                                            "error": f"set-up: {type(exc).__name__}: {exc}"})
         raise
     finally:
@@ -194,6 +199,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     if scheduler and scheduler.pacer:
         summary["realtime"] = scheduler.pacer.summary()
     write_json(out / "summary.json", summary)
+    if isinstance(error, WriteError):  # one line naming the file, not a component
+        raise error
     if error:
         raise RunError(error.component, f"{str(error).split(': ', 1)[-1]} (recorded so far: {out})")
     return summary
@@ -235,6 +242,7 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         "scenario": scenario.name,
         "status": status,
         "error": str(error) if error else f"{interrupted} at t = {sim:.3f} s" if interrupted else None,
+        **({"phase": error.phase} if isinstance(error, WriteError) else {}),
         **run_figures(recorder),
         "steps": completed,
         "sim_time_s": sim,
@@ -272,5 +280,9 @@ class _progress_bar:
 
 
 def write_json(path: Path, obj) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(obj, indent=2) + "\n")
+    """Write ``obj`` as JSON; a failure (a full disk) is an OutputWriteError naming the file."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(obj, indent=2) + "\n")
+    except OSError as exc:
+        raise OutputWriteError(path, exc) from exc
