@@ -82,6 +82,8 @@ def node_commands(scenario_file: Path, overrides: list[str], order: list[str], r
                 args += ["--rights", rights]
         for item in overrides:
             args += ["--set", item]
+        if os.environ.get("COSIM_TRUST_MODEL_CODE") == "1":  # `cosim run --trust-model-code`: every node too
+            args.append("--trust-model-code")
         if place is None:
             commands.append(NodeCommand(name, None, "local", args))
         else:

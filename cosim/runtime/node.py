@@ -282,7 +282,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         for sub in subs:
             sub.undeclare()
         if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
-            reply(-1, "closed", close_fault=stepper.close())
+            reply(-1, "closed", close_fault=stepper.close(), security_events=node.security_events)
         token.undeclare()  # after the reply: the scheduler waits for it while the node lives
         session.close()
     return status

@@ -198,6 +198,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
                        error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
     if scheduler and scheduler.pacer:
         summary["realtime"] = scheduler.pacer.summary()
+    if getattr(group, "security_events", None):  # samples and replies dropped as not the rightful publisher's
+        summary["security_events"] = group.security_events[:20]
     write_json(out / "summary.json", summary)
     if isinstance(error, WriteError):  # one line naming the file, not a component
         raise error

@@ -218,7 +218,8 @@ class RemoteGroup:
         except Exception:
             named = None
         if named != sender or sender not in self._cmd_pubs:
-            self.security_events.append(f"dropped a reply on {sample.key_expr} naming {named!r}")
+            if len(self.security_events) < 100:  # bounded: a flood must not fill the memory
+                self.security_events.append(f"dropped a reply on {sample.key_expr} naming {named!r}")
             return
         self._inbox.put((header, sample.payload.to_bytes()))
 
@@ -407,6 +408,9 @@ class RemoteGroup:
             except queue.Empty:
                 continue
             if reply.get("phase") == "closed":
+                if reply.get("security_events"):
+                    self.security_events.append(f"node {reply.get('name')} dropped {reply['security_events']} "
+                                                "sample(s) of its inputs: replayed, repeated or malformed")
                 waiting.discard(reply.get("name"))
                 if reply.get("close_fault"):
                     faults[reply["name"]] = reply["close_fault"]

@@ -145,3 +145,26 @@ def test_a_node_accepts_each_producers_tick_once():
         node._advance()
     assert stepper.seen == [(0, 1.0), (1, 2.0), (2, 2.0)]
     assert node.security_events == 5
+
+
+def test_the_scheduler_takes_a_reply_only_from_the_node_it_names():
+    """A reply on camera's key that names the controller (a forged failure, say) is dropped and counted."""
+    from cosim.runtime import bus
+    from cosim.runtime.portcache import PortStore
+    from cosim.runtime.scheduler import RemoteGroup
+    from cosim.runtime.wiring import build_wiring
+    from cosim.scenario.schema import load_scenario
+
+    wiring = build_wiring(load_scenario(TOY))
+    session = bus.open_session()
+    try:
+        group = RemoteGroup(session, "r1", wiring, PortStore(wiring.outputs))
+        forged = bus.encode_json({"name": "controller", "tick": 3, "phase": None, "ok": False, "error": "forged"})
+        session.put(bus.ctl_key("r1", "camera", "reply"), b"", attachment=forged)
+        own = bus.encode_json({"name": "camera", "tick": -1, "phase": "check", "ok": True, "missing": []})
+        session.put(bus.ctl_key("r1", "camera", "reply"), b"", attachment=own)
+        assert group.poll_reply(2.0) == {"name": "camera", "tick": -1, "phase": "check", "ok": True, "missing": []}
+        assert group.poll_reply(0.2) is None
+        assert group.security_events == ["dropped a reply on cosim/r1/ctl/camera/reply naming 'controller'"]
+    finally:
+        session.close()
