@@ -166,8 +166,10 @@ def load_hosts(path: Path, scenario: Scenario) -> HostsPlan:
             fail(loc, f"{text}: a run over more than one host links its machines with mutual TLS: use a "
                       f"tls/ endpoint (and the run's certificates, see cosim certs)")
         if match[1] == "tcp" and not _is_loopback(address):
+            where = f"tls/{address}:{match[3]}" if address not in ("0.0.0.0", "::", "[::]") else \
+                "a tls/ endpoint at the host's own address"
             fail(loc, f"{text}: plain TCP beyond loopback lets anyone on the network join the run and drive "
-                      f"its hardware: use tls/{address}:{match[3]} with the run's certificates (cosim certs)")
+                      f"its hardware: use {where} with the run's certificates (cosim certs)")
         if match[1] == "tls":
             need_tls(loc, host)
         return text
