@@ -138,6 +138,12 @@ class TraceRecorder:
                 self._rrd.append(start, stop, error)
                 self.drawn = stop
 
+    def security_event(self, text: str) -> None:
+        """Log a dropped sample or reply (see :mod:`cosim.runtime.node`) in the recording's event log, at
+        the last tick recorded; a no-op once the files are closed."""
+        if self._rrd is not None and not self.closed:
+            self._rrd.event(max(self.ticks - 1, 0) * self.scenario.dt_s, f"security: {text}", "WARN")
+
     def finish(self, error: str | None, event: str | None = None) -> None:
         """Write the rest and close the files; ``event`` (a fault or a stop) goes into the recording.
 

@@ -483,6 +483,10 @@ class Scheduler:
         if close_faults:
             state.error = with_close_faults(state.error, close_faults)
         error = str(state.error) if state.error else None
+        for text in getattr(self.group, "security_events", ())[:20]:  # into the recording, bounded
+            for obs in self.observers:
+                if hasattr(obs, "security_event"):
+                    obs.security_event(text)
         for obs in self.observers:
             try:
                 obs.finish(error, error or self.stop.reason)

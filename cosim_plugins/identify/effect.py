@@ -322,9 +322,8 @@ def restore_effects(names, sources: dict, library: dict | None = None) -> list[E
 def _library_from_data(name: str, entry) -> Effect:
     """A discovered effect from its stored term names and scales (coefficients come with the model's
     parameters); unknown term names raise a UserError."""
-    from cosim_plugins.identify.discover import TERMS, library_effect
-
-    table = {t.name: t for t in TERMS}
+    terms_table, library_effect = term_library()
+    table = {t.name: t for t in terms_table}
     try:
         names = [str(n) for n in entry["terms"]]
         scales = [float(s) for s in entry["scales"]]
@@ -335,6 +334,20 @@ def _library_from_data(name: str, entry) -> Effect:
         raise UserError(f"effect {name!r}: stored terms {unknown or names} are not terms this version knows "
                         f"(known: {', '.join(sorted(table))})")
     return library_effect([table[n] for n in names], np.asarray(scales), name=name)
+
+
+def term_library():
+    """(TERMS, library_effect) of the module of candidate terms, :mod:`discover` (in
+    ``cosim_plugins.diagnose`` since diagnose has a package of its own; ``cosim_plugins.identify`` before)."""
+    import importlib
+
+    for name in ("cosim_plugins.diagnose.discover", "cosim_plugins.identify.discover"):
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError:
+            continue
+        return module.TERMS, module.library_effect
+    raise UserError("the table of candidate terms (cosim_plugins.diagnose.discover) is not installed")
 
 
 def library_data(effects) -> dict:

@@ -100,8 +100,10 @@ def test_trust_runs_the_carried_code_from_memory_not_from_a_shared_folder(swirl_
 
 def test_a_discovered_effect_is_stored_as_terms_and_coefficients(tmp_path):
     """No source in the file; a fresh process rebuilds it from the term table and predicts the same."""
-    from cosim_plugins.identify.discover import TERMS, library_effect
+    from cosim_plugins.identify.effect import term_library
     from cosim_plugins.models.physical import PhysicalModel
+
+    TERMS, library_effect = term_library()
 
     terms = [TERMS[0], TERMS[3]]
     effect = library_effect(terms, np.array([0.5, 0.2]), coefs=[0.01, -0.02])
