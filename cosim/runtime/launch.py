@@ -58,9 +58,9 @@ def node_commands(scenario_file: Path, overrides: list[str], order: list[str], r
                   run_dir: Path, fingerprint: Fingerprint, cpus: str | None, free_endpoint,
                   hosts: HostsPlan | None, rights: str | None = None) -> list[NodeCommand]:
     """A command per component in ``order``: without ``hosts``, every node on this machine listening on
-    ``free_endpoint(name)`` (a unix socket of the run's private folder) and running on ``cpus``; with them, as placed there (a node started here without
-    CPUs of its own runs on ``cpus``); ``rights``: the run's per-host rights (:mod:`cosim.scale.rights`), given
-    to every node that links with TLS."""
+    ``free_endpoint(name)`` (a unix socket of the run's private folder) and running on ``cpus``; with
+    them, as placed there (a node started here without CPUs of its own runs on ``cpus``); ``rights``:
+    the run's per-host rights (:mod:`cosim.scale.rights`), given to every node that links with TLS."""
     commands, earlier = [], [scheduler]
     for name in order:
         place = hosts.nodes[name] if hosts else None

@@ -141,8 +141,13 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     endpoint = (plan.scheduler_listen if plan else private.endpoint("scheduler")) if request.processes else None
     rights = rights_of(plan) if plan and plan.scheduler_tls else None  # TLS: rights by certificate name
     access = access_control(run_id, wiring, rights) if rights else None
-    session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None, access=access) \
-        if endpoint else bus.open_session()
+    try:
+        session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None, access=access) \
+            if endpoint else bus.open_session()
+    except BaseException:
+        if private is not None:
+            private.close()
+        raise
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
     cache = PortStore(wiring.outputs, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, wiring.outputs)
     procs: list[subprocess.Popen] = []

@@ -380,7 +380,8 @@ def _import_source(name: str, text: str) -> None:
     try:
         exec(compile(text, filename, "exec"), module.__dict__)  # noqa: S102 (run only with --trust-model-code)
     except Exception as exc:  # the carried code: report whatever it raised
-        raise UserError(f"the code the model file carries for effect {name!r} failed: {type(exc).__name__}: {exc}") from exc
+        raise UserError(f"the code the model file carries for effect {name!r} failed: "
+                        f"{type(exc).__name__}: {exc}") from exc
     sys.modules[mod_name] = module
     _SOURCES[mod_name] = text
     pm.register(module, mod_name)

@@ -34,7 +34,8 @@ def _open_in_fresh_process(model: Path, *, effects_file: Path | None = None, tru
             "    m = load_model(sys.argv[1])\n"
             "except UserError as exc:\n"
             "    print('REFUSED', exc); sys.exit(3)\n"
-            "print('LOADED', [t.name for t in m.terms], repr(float(m.predict([10., -20., 5., 1., 2., 0.], [3., 0., 4.], 0.02)[0])))\n")
+            "x = m.predict([10., -20., 5., 1., 2., 0.], [3., 0., 4.], 0.02)\n"
+            "print('LOADED', [t.name for t in m.terms], repr(float(x[0])))\n")
     env = {k: v for k, v in os.environ.items() if k != "COSIM_TRUST_MODEL_CODE"}
     env["PYTHONPATH"] = str(ROOT)
     if trust:

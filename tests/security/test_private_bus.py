@@ -110,9 +110,9 @@ def test_a_process_of_another_user_cannot_join_a_processes_run(tmp_path):
 def test_a_node_accepts_each_producers_tick_once():
     """A second sample for a tick, a replay of an older one, a stamp off the producer's period and a
     payload of the wrong size are dropped; the first sample for each tick is what the node steps with."""
+    from cosim.contract.component import Port
     from cosim.runtime.node import _Node
     from cosim.runtime.portcache import PortStore, expected_stamp
-    from cosim.contract.component import Port
 
     class Sample:
         def __init__(self, tick, values):

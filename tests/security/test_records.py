@@ -16,8 +16,8 @@ TOY = ROOT / "tests" / "core" / "data" / "toy.yaml"
 
 
 def _scenario(tmp_path: Path, name: str) -> Path:
-    text = TOY.read_text().replace("name: toy", f"name: {json.dumps(name)}").replace("../toy_plugins.py",
-                                                                                      str(TOY.parent.parent / "toy_plugins.py"))
+    text = TOY.read_text().replace("name: toy", f"name: {json.dumps(name)}")
+    text = text.replace("../toy_plugins.py", str(TOY.parent.parent / "toy_plugins.py"))
     path = tmp_path / "s.yaml"
     path.write_text(text)
     return path

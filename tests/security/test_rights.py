@@ -75,7 +75,8 @@ def test_the_camera_certificate_cannot_drive_the_coils(tmp_path):
     stolen = TlsFiles(certs / "ca.pem", certs / "cam.pem", certs / "cam.key")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     run_proc = subprocess.Popen([sys.executable, "-m", "cosim.cli", "run", str(SCENARIO), "--processes", "--hosts",
-                                 str(hosts), "--out", "run", "--quiet", "--realtime", "1", *sum((["--set", s] for s in SHORT), [])],
+                                 str(hosts), "--out", "run", "--quiet", "--realtime", "1",
+                                 *[a for s in SHORT for a in ("--set", s)]],
                                 cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     session = None
     try:
