@@ -10,7 +10,6 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
-from urllib.parse import quote
 
 from cosim.contract.errors import UserError
 from cosim.scenario.catalog import resolve_scenario
@@ -38,9 +37,14 @@ def add_commands(sub) -> None:
                    help="with --processes: place the nodes on machines (host, endpoint, CPUs per component; "
                         "launched over ssh or printed to start by hand; mutual TLS between machines)")
     add_jobs_argument(p, "a sweep's runs at a time, each in a worker process")
-    p.add_argument("--executor", default=None, metavar="local|dask|dask://HOST:PORT",
+    p.add_argument("--executor", default=None, metavar="local|dask|dask://tls://HOST:PORT",
                    help="where a sweep's runs execute: local worker processes (default), a local Dask "
-                        "cluster of --jobs workers, or the Dask scheduler at HOST:PORT (needs the cluster extra)")
+                        "cluster of --jobs workers, or the Dask scheduler at HOST:PORT over mutual TLS "
+                        "(dask://HOST:PORT, plain TCP, on loopback only; needs the cluster extra)")
+    p.add_argument("--tls-ca", type=Path, default=None, metavar="PEM",
+                   help="with --executor dask://tls://...: the CA certificate the scheduler's must be signed by")
+    p.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this client's certificate")
+    p.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this client's private key")
     p.add_argument("--run-timeout", type=float, default=None, metavar="S",
                    help="a sweep's run still going after S seconds of wall time is stopped and counted failed")
     p.set_defaults(func=cmd_run)
@@ -64,12 +68,11 @@ def add_commands(sub) -> None:
     p.add_argument("--web", action="store_true",
                    help="serve rerun's web viewer instead of opening a window (no display needed; open the "
                         "address it prints in a browser, through an SSH tunnel from another machine)")
-    p.add_argument("--port", type=int, default=9090, help="the web viewer's HTTP port with --web (default 9090)")
-    p.add_argument("--data-port", type=int, default=9876,
-                   help="with --web: the port the viewer in the browser reads the recording from (default 9876)")
+    p.add_argument("--port", type=int, default=0,
+                   help="the web viewer's HTTP port with --web (default: a free port)")
     p.add_argument("--bind", default="127.0.0.1", metavar="ADDRESS",
-                   help="with --web: the address both ports listen on (default 127.0.0.1, this machine only; "
-                        "0.0.0.0 serves every network the machine is on)")
+                   help="the address the web viewer listens on with --web (default 127.0.0.1: this machine only; "
+                        "0.0.0.0 opens it to the network, unauthenticated)")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
@@ -91,6 +94,9 @@ def add_commands(sub) -> None:
     p.add_argument("--tls-ca", type=Path, default=None, metavar="PEM", help="the run's CA certificate (mutual TLS)")
     p.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this host's certificate")
     p.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this host's private key")
+    p.add_argument("--rights", default=None, metavar="SCHED;HOST=COMP,...",
+                   help="with TLS: the components each host runs, by its certificate's name (cosim.scale.rights); "
+                        "what a peer may publish and subscribe to here")
     p.set_defaults(func=cmd_node)
 
     p = sub.add_parser("certs", help="make a run's CA and one certificate per host of a HOSTS.yaml (mutual TLS)")
@@ -122,9 +128,18 @@ def cmd_run(args) -> int:
                         "so its sweep runs one at a time (no --jobs, no --executor)")
     if args.run_timeout is not None and not args.run_timeout > 0:
         raise UserError(f"--run-timeout {args.run_timeout:g}: the time must be > 0 [s]")
+    tls_args = (args.tls_ca, args.tls_cert, args.tls_key)
+    if any(tls_args) and not all(tls_args):
+        raise UserError("--tls-ca, --tls-cert and --tls-key go together (mutual TLS needs all three)")
+    if any(tls_args) and not (args.executor or "").startswith("dask://tls://"):
+        raise UserError("--tls-ca, --tls-cert and --tls-key are for --executor dask://tls://HOST:PORT (a run "
+                        "over machines takes its certificates from its hosts file)")
+    from cosim.runtime.bus import TlsFiles
+
     summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
                              args.node_cpus or "auto", args.realtime, jobs=jobs, executor=args.executor,
-                             run_timeout_s=args.run_timeout, hosts=args.hosts))
+                             run_timeout_s=args.run_timeout, hosts=args.hosts,
+                             executor_tls=TlsFiles(*tls_args) if all(tls_args) else None))
     if not args.quiet:
         _print_run(summary, out)
     if summary.get("status") == "interrupted":
@@ -248,26 +263,15 @@ def cmd_replay(args) -> int:
     if not Path(viewer).exists():
         raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
     if args.web:
-        print(f"serving {rrd} in rerun's web viewer (Ctrl-C stops); open in a browser:\n"
-              f"  {web_viewer_url(args.bind, args.port, args.data_port)}", flush=True)
-        # rerun's own log lines name the viewer's bare address too, which opens its welcome page: warnings only
-        return _call_viewer([viewer, "--serve-web", "--bind", args.bind, "--web-viewer-port", str(args.port),
-                             "--port", str(args.data_port), *files], env={**os.environ, "RUST_LOG": "warn"})
+        from cosim.record.web_viewer import serve_web
+
+        return serve_web(viewer, files, args.bind, args.port)
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise UserError(f"no display to open the viewer on ($DISPLAY and $WAYLAND_DISPLAY are unset): "
                         f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
                         f"`rerun rrd stats {rrd}` lists what the recording holds")
     print(f"opening {', '.join(files)} in the rerun viewer")
     return _call_viewer([viewer, *files])
-
-
-def web_viewer_url(bind: str, port: int, data_port: int) -> str:
-    """The one address that opens the recording in rerun's web viewer (the viewer's page, told where to
-    read the data from); a wildcard ``bind`` is reached at this machine's loopback."""
-    host = "127.0.0.1" if bind in ("0.0.0.0", "::", "") else bind
-    host = f"[{host}]" if ":" in host else host
-    data = quote(f"rerun+http://{host}:{data_port}/proxy", safe="")
-    return f"http://{host}:{port}/?url={data}"
 
 
 def _call_viewer(command: list[str], env: dict | None = None) -> int:
@@ -298,9 +302,14 @@ def cmd_node(args) -> int:
         expected = Fingerprint.decode(args.fingerprint) if args.fingerprint else None
     except ValueError as exc:
         raise UserError(f"--fingerprint: {exc}") from None
+    from cosim.scale.rights import parse_rights
+
+    rights = parse_rights(args.rights) if args.rights else None
+    if rights is not None and not all(tls_args):
+        raise UserError("--rights applies to TLS links: give --tls-ca, --tls-cert and --tls-key too")
     return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen,
                  args.cpus, args.run_dir, expected, TlsFiles(*tls_args) if all(tls_args) else None,
-                 args.scenario)
+                 args.scenario, rights)
 
 
 def cmd_certs(args) -> int:

@@ -10,7 +10,6 @@ analyses, e.g. ``cosim diagnose``, ``cosim camera``).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
 from cosim.cli import commands
@@ -33,6 +32,10 @@ def build_parser() -> argparse.ArgumentParser:
     commands.add_commands(sub)
     for add_commands in command_groups():
         add_commands(sub)
+    for command in sub.choices.values():
+        command.add_argument("--trust-model-code", action="store_true",
+                             help="run Python code carried inside model files (a user effect's source); without "
+                                  "it a model whose effect's file is not named refuses to load")
     return parser
 
 
@@ -46,6 +49,10 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         raise
     args = parser.parse_args(argv)
+    if getattr(args, "trust_model_code", False):
+        import os
+
+        os.environ["COSIM_TRUST_MODEL_CODE"] = "1"  # the processes this command starts inherit it
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

@@ -24,12 +24,14 @@ process loses at most the last batch; :func:`load_trace` reads a
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
+from cosim.contract.errors import OutputWriteError
 from cosim.runtime.portcache import port_slots
 from cosim.runtime.wiring import Wiring
 from cosim.scenario.paths import distance_to_path
@@ -66,6 +68,7 @@ class TraceRecorder:
         self._last_write = time.monotonic()
         self._part = self._rrd = None
         self._files: dict = {}  # the views' files, by key
+        self._file_ticks: dict = {}  # ticks written to each of them, by key
 
     def open(self) -> None:
         """Create the output files (headers only); called before the first tick."""
@@ -114,11 +117,16 @@ class TraceRecorder:
         start, stop = self.written, self.ticks
         if stop > start:
             t_s = self.t_s[start:stop]
-            for file in self._files.values():
-                file.append(self, start, stop)
+            for key, file in self._files.items():  # each from where it stands: a retry after a failed write
+                begin = self._file_ticks.get(key, start)  # appends no row twice
+                if stop > begin:
+                    with _writing(file.path):
+                        file.append(self, begin, stop)
+                    self._file_ticks[key] = stop
             table = np.hstack([t_s[:, None], *(rows[start:stop] for rows in self.rows.values())])
-            self._part.write(np.ascontiguousarray(table, dtype="<f8").tobytes())
-            self._part.flush()
+            with _writing(self.out_dir / "trace.part"):
+                self._part.write(np.ascontiguousarray(table, dtype="<f8").tobytes())
+                self._part.flush()
             self.written = stop
         if recording:
             self._last_write = time.monotonic()
@@ -131,30 +139,64 @@ class TraceRecorder:
                 self._rrd.append(start, stop, error)
                 self.drawn = stop
 
+    def security_event(self, text: str) -> None:
+        """Log a dropped sample or reply (see :mod:`cosim.runtime.node`) in the recording's event log, at
+        the last tick recorded; a no-op once the files are closed."""
+        if self._rrd is not None and not self.closed:
+            self._rrd.event(max(self.ticks - 1, 0) * self.scenario.dt_s, f"security: {text}", "WARN")
+
     def finish(self, error: str | None, event: str | None = None) -> None:
-        """Write the rest and close the files; ``event`` (a fault or a stop) goes into the recording."""
+        """Write the rest and close the files; ``event`` (a fault or a stop) goes into the recording.
+
+        A file that cannot be written (a full disk) does not keep the others from being written and
+        closed; the first such failure is raised afterwards as an
+        :class:`~cosim.contract.errors.OutputWriteError`, and ``trace.part`` stays unless
+        ``trace.npz`` was written."""
         if self.closed:
             return
         self.closed = True
         if self._part is None:
             self.open()
-        self.write_out()
+        failures = []
+        try:
+            self.write_out()
+        except OutputWriteError as exc:
+            failures.append(exc)
         if event:
             self._rrd.event(self.ticks * self.scenario.dt_s, event, "ERROR" if error else "WARN")
         self._rrd.close()
-        for file in self._files.values():
-            file.close()
-        self._part.close()
+        for path, close in [*((f.path, f.close) for f in self._files.values()),
+                            (self.out_dir / "trace.part", self._part.close)]:
+            try:
+                with _writing(path):
+                    close()
+            except OutputWriteError as exc:
+                failures.append(exc)
         n = self.ticks
         trace = {f"{c}.{p}": a[:n] for (c, p), a in self.arrays.items()}
-        np.savez_compressed(self.out_dir / "trace.npz", t_s=self.t_s[:n], **trace)
-        self.files["trace"] = self.out_dir / "trace.npz"
-        (self.out_dir / "trace.part").unlink()
-        (self.out_dir / "trace.part.json").unlink()
+        try:
+            with _writing(self.out_dir / "trace.npz"):
+                np.savez_compressed(self.out_dir / "trace.npz", t_s=self.t_s[:n], **trace)
+            self.files["trace"] = self.out_dir / "trace.npz"
+            (self.out_dir / "trace.part").unlink()
+            (self.out_dir / "trace.part.json").unlink()
+        except OutputWriteError as exc:
+            failures.append(exc)
+        if failures:
+            raise failures[0]
         if not self.tracks_path:
             self.tracking_error_m = None
         else:
             self.tracking_error_m = self.tracking_error_m[:n]
+
+
+@contextlib.contextmanager
+def _writing(path: Path):
+    """Turn an OSError while writing ``path`` into an :class:`OutputWriteError` naming it."""
+    try:
+        yield
+    except OSError as exc:
+        raise OutputWriteError(path, exc) from exc
 
 
 def _port_views(comp: str, ports, rows: np.ndarray):

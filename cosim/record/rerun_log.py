@@ -58,6 +58,23 @@ def component_recording(run_dir: Path, recording_id: str, component: str) -> rr.
     return rec
 
 
+def set_aside_parts(run_dir: Path) -> list[Path]:
+    """Rename the recording parts already in ``run_dir`` (``recording.<component>.rrd``: an earlier
+    run's, in a folder this run now writes) to ``earlier.recording.<component>.rrd``, so that
+    :func:`merge_parts` and ``cosim replay`` never take them for this run's; returns their new paths
+    and says so on stderr."""
+    moved = []
+    for part in sorted(Path(run_dir).glob("recording.*.rrd")):
+        if part.is_file() and not part.is_symlink():
+            target = part.with_name(f"earlier.{part.name}")
+            os.replace(part, target)
+            moved.append(target)
+    if moved:
+        print(f"cosim: set aside {len(moved)} recording part(s) of an earlier run in {run_dir}: "
+              f"{', '.join(p.name for p in moved)}", file=sys.stderr)
+    return moved
+
+
 def merge_parts(run_dir: Path) -> list[Path]:
     """Fold the parts components recorded (``recording.<component>.rrd``) into ``recording.rrd``
     once the run is over (``rerun rrd merge``), so the run has one recording file; returns the

@@ -99,7 +99,7 @@ def _insert_tls(conf: zenoh.Config, tls: TlsFiles) -> None:
 
 
 def open_session(listen: list[str] | None = None, connect: list[str] | None = None,
-                 tls: TlsFiles | None = None) -> zenoh.Session:
+                 tls: TlsFiles | None = None, access: dict | None = None) -> zenoh.Session:
     """Open a zenoh session.
 
     With no endpoints this is the embedded default: an in-process peer with
@@ -113,7 +113,9 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
     low-latency transport (no QoS priorities, no batching): every message is a
     step someone waits for. With ``tls`` (a run over machines, ``tls/``
     endpoints) every link is mutual TLS with the run's certificates: a peer
-    without a certificate of the run's CA can neither connect nor publish.
+    without a certificate of the run's CA can neither connect nor publish. ``access``: zenoh's
+    ``access_control`` section (:func:`cosim.scale.rights.access_control`): what each peer, known by
+    its certificate's name, may publish and subscribe to here.
     """
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
@@ -132,6 +134,8 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
         conf.insert_json5("transport/unicast/qos/enabled", "false")
     if tls is not None:
         _insert_tls(conf, tls)
+    if access is not None:
+        conf.insert_json5("access_control", json.dumps(access))
     try:
         return zenoh.open(conf)
     except zenoh.ZError as exc:  # e.g. a certificate or key zenoh cannot read

@@ -56,14 +56,15 @@ class NodeCommand:
 
 def node_commands(scenario_file: Path, overrides: list[str], order: list[str], run_id: str, scheduler: str,
                   run_dir: Path, fingerprint: Fingerprint, cpus: str | None, free_endpoint,
-                  hosts: HostsPlan | None) -> list[NodeCommand]:
+                  hosts: HostsPlan | None, rights: str | None = None) -> list[NodeCommand]:
     """A command per component in ``order``: without ``hosts``, every node on this machine listening on
-    ``free_endpoint()`` and running on ``cpus``; with them, as placed there (a node started here without
-    CPUs of its own runs on ``cpus``)."""
+    ``free_endpoint(name)`` (a unix socket of the run's private folder) and running on ``cpus``; with
+    them, as placed there (a node started here without CPUs of its own runs on ``cpus``); ``rights``:
+    the run's per-host rights (:mod:`cosim.scale.rights`), given to every node that links with TLS."""
     commands, earlier = [], [scheduler]
     for name in order:
         place = hosts.nodes[name] if hosts else None
-        listen = place.listen if place else free_endpoint()
+        listen = place.listen if place else free_endpoint(name)
         remote = place is not None and place.launch != "local"
         path = (lambda p: _relative(p)) if remote else (lambda p: str(Path(p).resolve()))
         args = ["node", name, path(scenario_file), "--run-id", run_id, "--listen", listen,
@@ -77,8 +78,12 @@ def node_commands(scenario_file: Path, overrides: list[str], order: list[str], r
         if place and place.tls:
             args += ["--tls-ca", path(place.tls.ca), "--tls-cert", path(place.tls.cert),
                      "--tls-key", path(place.tls.key)]
+            if rights:
+                args += ["--rights", rights]
         for item in overrides:
             args += ["--set", item]
+        if os.environ.get("COSIM_TRUST_MODEL_CODE") == "1":  # `cosim run --trust-model-code`: every node too
+            args.append("--trust-model-code")
         if place is None:
             commands.append(NodeCommand(name, None, "local", args))
         else:

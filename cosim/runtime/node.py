@@ -75,13 +75,38 @@ class _Node:
         self.done_ticks: list[int] = []  # steps not reported yet, and their outputs
         self.done_values: list = []
         self.done_lock = threading.Lock()  # held briefly: a flush reports even past a hung step
+        self.periods = {src: per for src, _, per, _ in edges}
+        self.accepted: dict[str, int] = {}  # per producer, the last tick whose outputs were accepted
+        self.security_events = 0  # samples dropped by on_data
 
     def on_data(self, producer: str, sample: zenoh.Sample) -> None:
-        """A step's outputs of ``producer``."""
-        tick = bus.decode_tick(sample.attachment.to_bytes())
+        """A step's outputs of ``producer``, accepted once per tick: a producer steps its ticks in order,
+        so a stamp not past the last one accepted (a replay, a second sample for a tick), one off the
+        producer's period, or a payload of the wrong size is dropped and reported as a security event."""
+        try:
+            tick = bus.decode_tick(sample.attachment.to_bytes())
+        except Exception:  # no or a malformed stamp
+            tick = None
         with self.lock:
-            self.store.store_payload(producer, [tick], sample.payload.to_bytes())
+            last = self.accepted.get(producer, -2)
+            period = self.periods.get(producer, 1)
+            if tick is None or tick <= last or (tick != -1 and tick % period):
+                self._rejected(producer, tick, "a stamp already accepted or out of order" if tick is not None
+                               else "no tick stamp")
+                return
+            try:
+                self.store.store_payload(producer, [tick], sample.payload.to_bytes())
+            except ValueError as exc:
+                self._rejected(producer, tick, str(exc))
+                return
+            self.accepted[producer] = tick
             self._advance()
+
+    def _rejected(self, producer: str, tick, why: str) -> None:
+        self.security_events += 1
+        if self.security_events <= 10:  # bounded: a flood must not fill the log
+            print(f"cosim node: security: dropped a sample of {producer}'s outputs for tick {tick}: {why}",
+                  file=sys.stderr, flush=True)
 
     def on_tick(self, sample: zenoh.Sample) -> None:
         msg = bus.decode_json(sample.payload.to_bytes())
@@ -153,7 +178,7 @@ class _Node:
 def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str],
           listen: list[str], cpus: str | None = None, run_dir: Path | None = None,
           expected: Fingerprint | None = None, tls: bus.TlsFiles | None = None,
-          scenario_file: Path | None = None) -> int:
+          scenario_file: Path | None = None, rights=None) -> int:
     """Serve component ``name`` until told to stop; returns an exit status.
 
     ``connect``: the scheduler's endpoint and those of the nodes started
@@ -162,14 +187,21 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     ``run_dir``: the run's output folder, for a component that writes files of its own;
     ``expected``: the run's fingerprint: with another of its own the node refuses to join
     (exit status 2); ``tls``: this host's files for mutual TLS with the run's other machines;
-    ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint).
+    ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint);
+    ``rights``: with ``tls``, the run's per-host rights (:class:`cosim.scale.rights.Rights`), which this
+    node's session enforces on what its peers send it.
     """
     if cpus is not None:
         parse_cpu_list(cpus)  # a bad list fails before anything starts
     if tls is not None:
         tls.check(f"cosim node {name}")
     mine = fingerprint(scenario, scenario_file or Path("."))
-    session = bus.open_session(listen=listen, connect=connect, tls=tls)
+    access = None
+    if rights is not None:
+        from cosim.scale.rights import access_control
+
+        access = access_control(run_id, wiring, rights)
+    session = bus.open_session(listen=listen, connect=connect, tls=tls, access=access)
     reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
     edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
 
@@ -250,7 +282,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         for sub in subs:
             sub.undeclare()
         if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
-            reply(-1, "closed", close_fault=stepper.close())
+            reply(-1, "closed", close_fault=stepper.close(), security_events=node.security_events)
         token.undeclare()  # after the reply: the scheduler waits for it while the node lives
         session.close()
     return status

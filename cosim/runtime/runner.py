@@ -20,7 +20,6 @@ import json
 import os
 import secrets
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -29,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim.contract.errors import OutputWriteError
 from cosim.record.recorder import TraceRecorder
 from cosim.record.summary import run_figures
 from cosim.runtime import bus
@@ -36,6 +36,7 @@ from cosim.runtime.fingerprint import fingerprint
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
 from cosim.runtime.placement import node_cpus
 from cosim.runtime.portcache import PortCache, PortStore
+from cosim.runtime.private_bus import PrivateEndpoints
 from cosim.runtime.scheduler import (
     WINDOW,
     LocalGroup,
@@ -44,11 +45,13 @@ from cosim.runtime.scheduler import (
     RunFault,
     Scheduler,
     StopRequest,
+    WriteError,
     with_close_faults,
 )
 from cosim.runtime.stepper import Stepper, setup_component
 from cosim.runtime.wiring import build_wiring
 from cosim.scale.hosts import load_hosts
+from cosim.scale.rights import access_control, format_rights, rights_of
 from cosim.scenario.paths import make_path
 from cosim.scenario.schema import Scenario, load_scenario
 
@@ -71,6 +74,8 @@ class RunRequest:
     #: where a sweep's runs execute: None (local worker processes when ``jobs`` > 1), ``local``,
     #: ``dask`` or ``dask://HOST:PORT`` (see :mod:`cosim.scale.executors`)
     executor: str | None = None
+    #: with ``executor`` ``dask://tls://HOST:PORT``: this client's files of the run's CA (``cosim certs``)
+    executor_tls: bus.TlsFiles | None = None
     #: a sweep's run still going after this many seconds of wall time is stopped and failed
     run_timeout_s: float | None = None
     #: with ``processes``: a HOSTS.yaml placing the nodes on machines (see :mod:`cosim.scale.hosts`)
@@ -135,15 +140,27 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     out = Path(request.out_dir)  # made only once the scenario has validated
     out.mkdir(parents=True, exist_ok=True)
     run_id = secrets.token_hex(4)
+    from cosim.record.rerun_log import set_aside_parts
+
+    set_aside_parts(out)  # an earlier run's parts are never merged into this run's recording
     recorder = TraceRecorder(scenario, wiring, out, path)
     recorder.open()
     realtime = request.realtime or scenario.realtime
     write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
                                        "note": "written when the run started; a run that ends rewrites it"})
     plan = load_hosts(request.hosts, scenario) if request.processes and request.hosts else None
-    endpoint = (plan.scheduler_listen if plan else _loopback_endpoint()) if request.processes else None
-    session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None) if endpoint \
-        else bus.open_session()
+    # one machine: unix sockets in a 0700 folder of this run, which no other user can reach
+    private = PrivateEndpoints() if request.processes and not plan else None
+    endpoint = (plan.scheduler_listen if plan else private.endpoint("scheduler")) if request.processes else None
+    rights = rights_of(plan) if plan and plan.scheduler_tls else None  # TLS: rights by certificate name
+    access = access_control(run_id, wiring, rights) if rights else None
+    try:
+        session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None, access=access) \
+            if endpoint else bus.open_session()
+    except BaseException:
+        if private is not None:
+            private.close()
+        raise
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
     cache = PortStore(wiring.outputs, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, wiring.outputs)
     procs: list[subprocess.Popen] = []
@@ -156,8 +173,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
             group = RemoteGroup(session, run_id, wiring, cache)
             expected = fingerprint(scenario, request.scenario_file)
             commands = node_commands(request.scenario_file, request.overrides, wiring.order, run_id, endpoint,
-                                     out, expected, cpus, _loopback_endpoint, plan)
+                                     out, expected, cpus, private.endpoint if private else None, plan,
+                                     format_rights(rights) if rights else None)
             start_nodes(commands, group, expected, procs, plan.wait_s if plan else NODE_START_TIMEOUT_S, stop)
+            group.processes = dict(zip([c.component for c in commands if c.launch != "manual"], procs))
         else:
             steppers = {}
             group = LocalGroup(steppers)
@@ -174,7 +193,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     except RunError as exc:  # in set-up: nothing ran
         error = exc
     except BaseException as exc:  # set-up failed otherwise (or Ctrl-C before the handlers): say so, then raise
-        write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed",
+        write_json(out / "summary.json", {"scenario": scenario.name, "status": "failed", "phase": "set-up",
                                            "error": f"set-up: {type(exc).__name__}: {exc}"})
         raise
     finally:
@@ -184,6 +203,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
         if isinstance(cache, PortCache):
             cache.close()
         session.close()
+        if private is not None:
+            private.close()
     total_wall = time.perf_counter() - wall0
     if late_faults:
         error = with_close_faults(error, late_faults)
@@ -195,7 +216,11 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
                        error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
     if scheduler and scheduler.pacer:
         summary["realtime"] = scheduler.pacer.summary()
+    if getattr(group, "security_events", None):  # samples and replies dropped as not the rightful publisher's
+        summary["security_events"] = group.security_events[:20]
     write_json(out / "summary.json", summary)
+    if isinstance(error, WriteError):  # one line naming the file, not a component
+        raise error
     if error:
         raise RunError(error.component, f"{str(error).split(': ', 1)[-1]} (recorded so far: {out})")
     return summary
@@ -237,6 +262,7 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         "scenario": scenario.name,
         "status": status,
         "error": str(error) if error else f"{interrupted} at t = {sim:.3f} s" if interrupted else None,
+        **({"phase": error.phase} if isinstance(error, WriteError) else {}),
         **run_figures(recorder),
         "steps": completed,
         "sim_time_s": sim,
@@ -245,13 +271,6 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         "total_wall_time_s": total_wall_s,
         "files": {k: v.name for k, v in recorder.files.items()},
     }
-
-
-def _loopback_endpoint() -> str:
-    """A free TCP endpoint on loopback: where a node on this machine listens."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 class _progress_bar:
@@ -281,6 +300,9 @@ class _progress_bar:
 
 
 def write_json(path: Path, obj) -> None:
-    """Write ``obj`` to ``path`` as indented JSON, making its folder first."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(obj, indent=2) + "\n")
+    """Write ``obj`` as JSON; a failure (a full disk) is an OutputWriteError naming the file."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(obj, indent=2) + "\n")
+    except OSError as exc:
+        raise OutputWriteError(path, exc) from exc

@@ -36,7 +36,7 @@ import numpy as np
 import zenoh
 
 from cosim.contract.component import ComponentFault
-from cosim.contract.errors import UserError
+from cosim.contract.errors import OutputWriteError, UserError
 from cosim.runtime import bus
 from cosim.runtime.pacing import Pacer
 from cosim.runtime.portcache import PortStore, PortTimeout, expected_stamp
@@ -62,6 +62,16 @@ class RunFault(RunError):
 
     def __init__(self, component: str, message: str, tick: int | None = None):
         super().__init__(component, f"fault: {message}", tick)
+
+
+class WriteError(RunError):
+    """Writing the run's outputs failed (a full disk): the run stops, what was written is kept.
+    ``phase``: "stepping" or "writing the outputs"."""
+
+    def __init__(self, exc: OutputWriteError, phase: str, t_s: float | None = None):
+        at = f" at t = {t_s:.3f} s" if t_s is not None else ""
+        UserError.__init__(self, f"{exc} (the run stopped{at}, while {phase}; what was written before is kept)")
+        self.component, self.tick, self.phase, self.path = "recording", None, phase, exc.path
 
 
 class StopRequest:
@@ -154,6 +164,12 @@ class LocalGroup:
 #: credit and report is a message a node handles besides its inputs: at 32,
 #: 0.6 of them per tick in all (at 8: 2.5), which took ~20 % off a tick.
 WINDOW = 32
+#: A gap this long [s] between two rounds of the watchdog (every 50 ms) means this process itself
+#: did not run (stopped, starved of CPU); nodes that vanish within STALL_BLAME_S [s] after it
+#: took the scheduler for gone, and the scheduler is the one named.
+STALL_S = 2.0
+STALL_BLAME_S = 30.0
+
 #: Steps a node reports in one reply (sooner when it runs out of credit).
 REPLY_BATCH = WINDOW // 2
 #: How long a timed-out run waits for the nodes' unreported steps before naming the hung one.
@@ -181,15 +197,31 @@ class RemoteGroup:
         self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}
         # (header, payload) of every reply; a Python queue, as zenoh's own blocking recv polls
         self._inbox: queue.SimpleQueue[tuple[bytes, bytes]] = queue.SimpleQueue()
-        self._replies = session.declare_subscriber(
-            bus.ctl_key(run_id, "*", "reply"),
-            lambda sample: self._inbox.put((sample.attachment.to_bytes(), sample.payload.to_bytes())))
+        self.security_events: list[str] = []  # replies dropped by _on_reply
+        self._replies = session.declare_subscriber(bus.ctl_key(run_id, "*", "reply"), self._on_reply)
         self._done = {n: -1 for n in names}  # the last tick each node has reported
         self._joined: set[str] = set()  # the nodes that said they were ready (set up, with the run's fingerprint)
         self._alive = session.liveliness().declare_subscriber(bus.alive_key(run_id), self._on_alive)
         # the nodes stop (their outputs made safe) when this token goes: this process ended
         self._token = session.liveliness().declare_token(bus.scheduler_alive_key(run_id))
         self.closed = False
+        #: the node processes started on this machine, by component (set by the runner)
+        self.processes: dict = {}
+
+    def _on_reply(self, sample: zenoh.Sample) -> None:
+        """Queue a node's reply; one whose header names another node than its key is dropped (a node
+        speaks for itself only: with access control, its key is the only one it may publish on)."""
+        header = sample.attachment.to_bytes() if sample.attachment is not None else b""
+        sender = str(sample.key_expr).rsplit("/", 2)[-2]
+        try:
+            named = bus.decode_json(header).get("name")
+        except Exception:
+            named = None
+        if named != sender or sender not in self._cmd_pubs:
+            if len(self.security_events) < 100:  # bounded: a flood must not fill the memory
+                self.security_events.append(f"dropped a reply on {sample.key_expr} naming {named!r}")
+            return
+        self._inbox.put((header, sample.payload.to_bytes()))
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
         name = str(sample.key_expr).rsplit("/", 1)[-1]
@@ -198,6 +230,17 @@ class RemoteGroup:
 
     def dead(self) -> list[str]:
         return sorted(self._dead)
+
+    def gone_reason(self, name: str, tick: int) -> str:
+        """Why node ``name``'s liveliness token went, as far as this machine can tell: a node process
+        started here (:attr:`processes`) that still exists was paused or starved, not ended."""
+        proc = self.processes.get(name)
+        if proc is not None and proc.poll() is None:
+            return (f"not answering: its process is still there but its link went silent for zenoh's lease "
+                    f"(paused, or starved of CPU) (tick {tick})")
+        if proc is not None:
+            return f"its process ended unexpectedly with status {proc.returncode} (tick {tick})"
+        return f"its node stopped answering: its process ended, or its machine or link went away (tick {tick})"
 
     def interrupt(self, name: str, reason: str) -> None:
         self._inbox.put((bus.encode_json({"name": name, "ok": False, "error": reason}), b""))
@@ -365,6 +408,9 @@ class RemoteGroup:
             except queue.Empty:
                 continue
             if reply.get("phase") == "closed":
+                if reply.get("security_events"):
+                    self.security_events.append(f"node {reply.get('name')} dropped {reply['security_events']} "
+                                                "sample(s) of its inputs: replayed, repeated or malformed")
                 waiting.discard(reply.get("name"))
                 if reply.get("close_fault"):
                     faults[reply["name"]] = reply["close_fault"]
@@ -409,6 +455,8 @@ class Scheduler:
         self.progress = Progress()
         self.loop_wall_s = 0.0  # wall time of the ticks alone (set-up and writing excluded)
         self._flushed: tuple = (None, 0.0)  # (occasion, time) of the watchdog's last flush
+        self._stalled_at: float | None = None  # when this process last resumed after not running
+        self._stall_s = 0.0  # for how long it had not run
 
     def run(self, on_progress: Callable[[int], None] | None = None) -> int:
         """Run the ticks (all, or up to a requested stop); returns the number completed.
@@ -419,8 +467,13 @@ class Scheduler:
         worker = threading.Thread(target=self._work, name="cosim-scheduler", daemon=True)
         worker.start()
         state = self.progress
+        last = time.monotonic()
         while not state.done:
             worker.join(timeout=0.05)
+            now = time.monotonic()
+            if now - last > STALL_S:  # this process itself did not run (stopped, starved)
+                self._stalled_at, self._stall_s = now, now - last
+            last = now
             if on_progress:
                 on_progress(state.tick + 1)
             self._watch()
@@ -430,8 +483,16 @@ class Scheduler:
         if close_faults:
             state.error = with_close_faults(state.error, close_faults)
         error = str(state.error) if state.error else None
+        for text in getattr(self.group, "security_events", ())[:20]:  # into the recording, bounded
+            for obs in self.observers:
+                if hasattr(obs, "security_event"):
+                    obs.security_event(text)
         for obs in self.observers:
-            obs.finish(error, error or self.stop.reason)
+            try:
+                obs.finish(error, error or self.stop.reason)
+            except OutputWriteError as exc:  # the first failure stands (a write that failed while stepping fails again)
+                if state.error is None:
+                    state.error = WriteError(exc, "writing the outputs")
         if state.error:
             raise state.error
         return completed
@@ -443,8 +504,14 @@ class Scheduler:
             return
         dead = self.group.dead()
         if dead:
-            if self._heard_out("dead", [n for n in self.wiring.order if n not in dead]):
-                self._stop(dead[0], f"its process ended unexpectedly (tick {max(state.tick, 0)})")
+            tick = max(state.tick, 0)
+            if self._stalled_at is not None and time.monotonic() - self._stalled_at < STALL_BLAME_S:
+                self._stop("scheduler", f"the scheduler's own process did not run for {self._stall_s:.1f} s "
+                                        f"(paused, or starved of CPU), so its nodes took it for gone and stopped "
+                                        f"(tick {tick})")
+            elif self._heard_out("dead", [n for n in self.wiring.order if n not in dead]):
+                first = next(n for n in self.wiring.order if n in dead)  # wiring order, not the alphabet
+                self._stop(first, self.group.gone_reason(first, tick))
             return
         pending, since = state.pending, state.since
         if not pending or time.monotonic() - since <= min(self.timeouts[n] for n in pending):
@@ -495,6 +562,8 @@ class Scheduler:
                     return
         except PortTimeout as exc:
             self._fail(RunError(exc.component, f"{exc.what} for tick {exc.stamp} never arrived"))
+        except OutputWriteError as exc:  # an observer could not write (a full disk): stop, keep what was written
+            self._fail(WriteError(exc, "stepping", max(state.tick, 0) * dt))
         except RunError as exc:
             self._catch_up(exc.tick)
             if isinstance(exc, RunFault):  # record the fault's tick as far as it went

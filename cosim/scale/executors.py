@@ -162,7 +162,7 @@ class DaskLanes:
 
     ships = True
 
-    def __init__(self, n: int, address: str | None = None):
+    def __init__(self, n: int, address: str | None = None, tls=None):
         try:
             import dask
             from distributed import Client, LocalCluster
@@ -180,8 +180,16 @@ class DaskLanes:
                                             dashboard_address=None, silence_logs=logging.ERROR)
             self.client = Client(self.cluster)
         else:
+            security = None
+            if tls is not None:  # mutual TLS with the run's certificates (cosim certs)
+                from distributed.security import Security
+
+                tls.check(f"--executor dask://tls://{address}")
+                security = Security(tls_ca_file=str(tls.ca), tls_client_cert=str(tls.cert),
+                                    tls_client_key=str(tls.key), require_encryption=True)
             try:
-                self.client = Client(f"tcp://{address}", timeout=DASK_CONNECT_TIMEOUT_S)
+                self.client = Client(f"{'tls' if tls else 'tcp'}://{address}", timeout=DASK_CONNECT_TIMEOUT_S,
+                                     security=security)
             except (OSError, TimeoutError) as exc:
                 raise UserError(f"--executor dask://{address}: no Dask scheduler answered at {address} within "
                                 f"{DASK_CONNECT_TIMEOUT_S:g} s ({exc})") from None
@@ -260,6 +268,15 @@ def _sigint_ignored():
         signal.signal(signal.SIGINT, previous)
 
 
+def _loopback(host: str) -> bool:
+    import ipaddress
+
+    try:
+        return host == "localhost" or ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
 @contextlib.contextmanager
 def workers(jobs: int, spec: str | None = None):
     """Worker processes shared by several sweeps (``cosim reproduce``, ``cosim dataset``): pass
@@ -272,18 +289,32 @@ def workers(jobs: int, spec: str | None = None):
             executor.close()
 
 
-def open_executor(spec: str | None, jobs: int, place: bool = False) -> LocalLanes | DaskLanes:
+def open_executor(spec: str | None, jobs: int, place: bool = False, tls=None) -> LocalLanes | DaskLanes:
     """The executor for ``--executor SPEC`` (None or ``local``: :class:`LocalLanes`; ``dask``;
-    ``dask://HOST:PORT``) with ``jobs`` workers (a local Dask cluster's size);
-    ``place``: give each local lane CPUs of its own (runs with ``--processes``)."""
+    ``dask://HOST:PORT``, plain TCP, on loopback only; ``dask://tls://HOST:PORT``, mutual TLS with
+    ``tls``, :class:`cosim.runtime.bus.TlsFiles` made by ``cosim certs``) with ``jobs`` workers (a local
+    Dask cluster's size); ``place``: give each local lane CPUs of its own (runs with ``--processes``).
+
+    Whoever reaches a Dask scheduler runs code on its workers: a scheduler beyond this machine is
+    reached with TLS only, and it must require the run's certificates of its clients too."""
     if spec in (None, "local"):
         return LocalLanes(jobs, place)
     if spec == "dask":
         return DaskLanes(jobs)
     if spec.startswith("dask://"):
         address = spec[len("dask://"):]
+        secure = address.startswith("tls://")
+        address = address[len("tls://"):] if secure else address
         host, _, port = address.rpartition(":")
         if not host or not port.isdigit():
-            raise UserError(f"--executor {spec}: expected dask://HOST:PORT, e.g. dask://10.0.0.5:8786")
-        return DaskLanes(jobs, address)
+            raise UserError(f"--executor {spec}: expected dask://tls://HOST:PORT (or dask://HOST:PORT on "
+                            "loopback), e.g. dask://tls://10.0.0.5:8786")
+        if secure and tls is None:
+            raise UserError(f"--executor {spec}: a TLS scheduler needs the run's certificates: --tls-ca, --tls-cert "
+                            "and --tls-key (cosim certs HOSTS.yaml makes them)")
+        if not secure and not _loopback(host):
+            raise UserError(f"--executor {spec}: plain TCP to a Dask scheduler beyond this machine lets anyone "
+                            f"who reaches it run code on its workers: use dask://tls://{address} with the run's "
+                            "certificates (--tls-ca, --tls-cert, --tls-key)")
+        return DaskLanes(jobs, address, tls if secure else None)
     raise UserError(f"--executor {spec}: expected local, dask or dask://HOST:PORT")

@@ -23,7 +23,9 @@ Paths (certificates) are relative to the file's folder. The scheduler's host
 is this machine; a component not listed runs here too, on a free port. A
 run whose components are on more than one host must use ``tls/`` endpoints
 with the run's certificates (mutual TLS), so no other host on the network
-can join it or publish to its keys. Errors name the file, the field and its
+can join it or publish to its keys; a ``tcp/`` endpoint is refused beyond
+loopback. With TLS every process also enforces each host's rights, by its
+certificate's name (:mod:`cosim.scale.rights`). Errors name the file, the field and its
 line.
 """
 
@@ -111,6 +113,7 @@ class NodePlace:
 class HostsPlan:
     """A hosts file resolved for one run: the scheduler's endpoint and TLS files, each node's place."""
     path: Path
+    scheduler_host: str
     scheduler_listen: str
     scheduler_tls: TlsFiles | None
     nodes: dict[str, NodePlace]
@@ -168,6 +171,11 @@ def load_hosts(path: Path, scenario: Scenario) -> HostsPlan:
         if len(used) > 1 and match[1] != "tls":
             fail(loc, f"{text}: a run over more than one host links its machines with mutual TLS: use a "
                       f"tls/ endpoint (and the run's certificates, see cosim certs)")
+        if match[1] == "tcp" and not _is_loopback(address):
+            where = f"tls/{address}:{match[3]}" if address not in ("0.0.0.0", "::", "[::]") else \
+                "a tls/ endpoint at the host's own address"
+            fail(loc, f"{text}: plain TCP beyond loopback lets anyone on the network join the run and drive "
+                      f"its hardware: use {where} with the run's certificates (cosim certs)")
         if match[1] == "tls":
             need_tls(loc, host)
         return text
@@ -198,7 +206,7 @@ def load_hosts(path: Path, scenario: Scenario) -> HostsPlan:
                 if not file.is_file():
                     fail(tuple(field.split(".")), f"{file} does not exist (cosim certs {path} makes the run's "
                                                   "certificates)")
-    return HostsPlan(path, scheduler_listen, tls_of(here) if scheduler_listen.startswith("tls/") else None,
+    return HostsPlan(path, here, scheduler_listen, tls_of(here) if scheduler_listen.startswith("tls/") else None,
                      nodes, spec.wait_s)
 
 
@@ -209,6 +217,18 @@ def read_hosts_file(path: Path) -> tuple[HostsFile, Path]:
         return HostsFile.model_validate(data), Path(path).parent
     except ValidationError as exc:
         raise HostsError(f"{path}: invalid hosts file\n" + "\n".join(error_lines(exc, node))) from None
+
+
+def _is_loopback(address: str) -> bool:
+    """Whether ``address`` (an IP address or a name) is this machine's loopback (127.0.0.0/8, ::1, localhost)."""
+    import ipaddress
+
+    if address == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(address.strip("[]")).is_loopback
+    except ValueError:
+        return False
 
 
 def _free_port(address: str) -> int:

@@ -57,10 +57,12 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
         from cosim.scale.executors import open_executor
 
         executor, own = open_executor(request.executor, request.jobs,
-                                      place=request.processes and request.node_cpus == "auto"), True
+                                      place=request.processes and request.node_cpus == "auto",
+                                      tls=request.executor_tls), True
     try:
         jobs = _jobs(combos, request, out, ships=bool(executor and executor.ships),
                      stop_event=getattr(executor, "stop_name", None))
+        claim_run_folders(job.run_dir for job in jobs)
         prepare_caches((job.scenario_file, job.overrides) for job in jobs)
         if executor is None:
             _serial(jobs, record, stop, request.progress)
@@ -212,6 +214,7 @@ class SweepRecord:
         from cosim.runtime.runner import write_json
 
         summary, made_by = result["summary"], result.get("fingerprint") or {}
+        mark_own(Path(job.run_dir))  # again: a run shipped back from a worker replaced the folder
         row = {**job.labels, **{k: summary[k] for k in METRICS if summary.get(k) is not None},
                "status": summary["status"], "dir": str(Path(job.run_dir).relative_to(self.out))}
         if summary["status"] != "ok":
@@ -280,13 +283,37 @@ class _ProgressLine:
             self.bar.close()
 
 
+#: The file a sweep leaves in each run folder it makes: the only folders a later sweep removes.
+SWEEP_MARK = ".cosim-sweep-run"
+
+
+def mark_own(folder: Path) -> None:
+    """Make ``folder`` (if need be) and mark it as a sweep's run folder."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / SWEEP_MARK).write_text("a run folder made by a cosim sweep; the next sweep here replaces it\n")
+
+
+def claim_run_folders(folders) -> None:
+    """Make and mark this sweep's run folders; one that exists without the mark (a folder the sweep did
+    not make) is a UserError naming it, and nothing in it is touched."""
+    from cosim.contract.errors import UserError
+
+    for folder in map(Path, folders):
+        if folder.exists() and not (folder / SWEEP_MARK).is_file():
+            raise UserError(f"{folder} exists and was not made by a sweep: move it away (a sweep writes and "
+                            "removes only folders it made)")
+    for folder in map(Path, folders):
+        mark_own(folder)
+
+
 def clear_earlier_sweep(runs_dir: Path) -> None:
-    """Remove the run folders an earlier sweep left in ``runs_dir`` (``NNN_label``, holding a
-    summary.json), so none is mistaken for one of this sweep's; says how many went."""
+    """Remove the run folders an earlier sweep left in ``runs_dir``: those it marked as its own
+    (:data:`SWEEP_MARK`), so none is mistaken for one of this sweep's; says how many went. A folder
+    without the mark is left alone, whatever its name."""
     if not runs_dir.is_dir():
         return
     stale = sorted(d for d in runs_dir.iterdir()
-                   if d.is_dir() and d.name[:3].isdigit() and d.name[3:4] == "_" and (d / "summary.json").is_file())
+                   if d.is_dir() and not d.is_symlink() and (d / SWEEP_MARK).is_file())
     for d in stale:
         shutil.rmtree(d)
     if stale:

@@ -119,9 +119,14 @@ class ReportSpec(_Strict):
         "whose mean tracking error stays below this"))
 
 
+#: A scenario's name: it names the run's folder (``runs/NAME``), so a plain name, no path.
+PLAIN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
+
+
 class Scenario(_Strict):
     """A validated scenario (see the module docstring and ``cosim schema``)."""
-    name: str
+
+    name: str = Field(description="a plain name (letters, digits, '.', '_', '-'): it names the run's folder")
     description: str = ""
     duration_s: float = Field(gt=0)
     dt_s: float = Field(0.02, gt=0, le=1.0)
@@ -140,6 +145,14 @@ class Scenario(_Strict):
     record: RecordSpec = Field(default_factory=RecordSpec)
     sweep: dict[str, list[Any]] = Field(default_factory=dict)
     report: ReportSpec = Field(default_factory=ReportSpec)
+
+    @field_validator("name")
+    @classmethod
+    def _plain_name(cls, name: str) -> str:
+        if not PLAIN_NAME.match(name) or ".." in name:
+            raise ValueError(f"{name!r} is not a plain name: use letters, digits, '.', '_' and '-' (up to 100, "
+                             "no '..'); it names the run's folder under runs/, so it cannot be a path")
+        return name
 
     @model_validator(mode="after")
     def _check_wiring(self):

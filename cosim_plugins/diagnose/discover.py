@@ -121,7 +121,8 @@ def library_effect(terms, scales, name: str = "discovered", coefs=None) -> Effec
     def force(p, v, u, prm):
         return term_force(terms, [prm[t.name] for t in terms], p, v, u)
 
-    return Effect(name=name, params=params, force=force, doc="a sparse combination of candidate force terms")
+    return Effect(name=name, params=params, force=force, doc="a sparse combination of candidate force terms",
+                  terms=tuple(t.name for t in terms))
 
 
 def _coef_unit(t: Term) -> str:

@@ -51,6 +51,8 @@ def add_commands(subparsers) -> None:
     c.add_argument("--json", required=True, metavar="OUT", help="write the results here (JSON)")
     c.add_argument("--plots", metavar="DIR", help="write PNG plots and compare.rrd here")
     c.add_argument("--split", choices=("train", "test", "validation"), help="label for these logs in the output")
+    c.add_argument("--effects-file", action="append", default=[], metavar="FILE.py",
+                   help="a Python file registering effects the models use; repeatable")
     c.set_defaults(func=cmd_compare)
 
 
@@ -131,8 +133,10 @@ def cmd_compare(args) -> int:
     """``cosim compare``: per-model one-step and open-loop errors against the measurements."""
     from cosim_plugins.identify.compare import compare, format_table
     from cosim_plugins.identify.dataset import Dataset
+    from cosim_plugins.identify.effect import load_effect_files
     from cosim_plugins.identify.fit import load_models
 
+    load_effect_files(args.effects_file)
     models = load_models(args.models)
     dataset = Dataset.from_paths(args.logs)
     print("data quality:")

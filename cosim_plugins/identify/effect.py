@@ -94,6 +94,8 @@ class Effect:
             possible), e.g. step-out frequencies spread over the commanded band.
         lookback: optional ``lookback(params) -> int`` (kind ``"sensor"``): rows of
             trajectory before row 0 that the transform reads (see the module doc).
+        terms: for a discovered effect, the names of its candidate terms (:mod:`.discover`):
+            a model file stores these and the coefficients, not code.
     """
 
     name: str
@@ -105,6 +107,7 @@ class Effect:
     starts: tuple[dict, ...] = field(default=())
     data_starts: Callable | None = None
     lookback: Callable | None = None
+    terms: tuple[str, ...] = field(default=())
 
     def param_names(self) -> list[str]:
         """Fully qualified names ``effect.param`` used in models, reports and files."""
@@ -266,30 +269,119 @@ def effect_sources(effects) -> dict[str, str]:
     for e in effects:
         fn = getattr(e, "force", None) or getattr(e, "transform", None)
         module = sys.modules.get(getattr(fn, "__module__", "") or "")
+        if getattr(e, "terms", ()):
+            continue  # a discovered effect: stored as data (:func:`library_data`)
         if module is not None and module.__name__.startswith(USER_MODULE_PREFIX):
-            out[e.name] = inspect.getsource(module)
+            out[e.name] = _SOURCES.get(module.__name__) or inspect.getsource(module)
     return out
 
 
-def restore_effects(names, sources: dict) -> list[Effect]:
-    """The registered effects ``names``; those not registered are loaded from ``sources`` (see
-    :func:`effect_sources`) through a file under the temporary folder named by the text's hash."""
-    import hashlib
-    import tempfile
+TRUST_ENV = "COSIM_TRUST_MODEL_CODE"  # set to 1 by `--trust-model-code`; node processes inherit it
 
+
+def trusts_model_code() -> bool:
+    """Whether the user allowed code carried inside model files to run (``--trust-model-code``)."""
+    import os
+
+    return os.environ.get(TRUST_ENV, "") == "1"
+
+
+def restore_effects(names, sources: dict, library: dict | None = None) -> list[Effect]:
+    """The effects ``names`` of a model file, without running code the file carries unless allowed.
+
+    An effect is taken, in this order: from the registry (built-in, or loaded from a file the user
+    named: ``--effects-file``, a scenario's ``plugins``); from ``library`` ({name: {"terms": [term
+    names], "scales": [typical sizes]}}, a discovered effect stored as data, rebuilt from the
+    table of :mod:`.discover`); from ``sources`` (a user effect's source text, kept for the record)
+    only if :func:`trusts_model_code`, imported from memory, never through a file. Otherwise a
+    UserError names the effect and the two ways to allow it.
+    """
     known = known_effects()
+    out = []
     for name in names:
-        if name in known or name not in sources:
+        if name in known:
+            out.append(known[name])
+        elif name in (library or {}):
+            out.append(_library_from_data(name, library[name]))
+        elif name in sources and trusts_model_code():
+            _import_source(name, sources[name])
+            known = known_effects()
+            if name not in known:
+                raise UserError(f"the code the model file carries for effect {name!r} does not register it")
+            out.append(check_effect(known[name], f"the model file's code for {name!r}"))
+        elif name in sources:
+            raise UserError(f"effect {name!r} is Python code carried inside the model file, which cosim does not "
+                            f"run unless told to: load that effect's file (--effects-file FILE.py, or list it in "
+                            f"the scenario's plugins), or pass --trust-model-code to run the code the file carries")
+        else:
+            raise UserError(f"the model uses effect {name!r}, which is not registered and which the model file "
+                            "does not describe: load its effect file first (--effects-file FILE.py)")
+    return out
+
+
+def _library_from_data(name: str, entry) -> Effect:
+    """A discovered effect from its stored term names and scales (coefficients come with the model's
+    parameters); unknown term names raise a UserError."""
+    terms_table, library_effect = term_library()
+    table = {t.name: t for t in terms_table}
+    try:
+        names = [str(n) for n in entry["terms"]]
+        scales = [float(s) for s in entry["scales"]]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise UserError(f"effect {name!r}: its stored terms are malformed ({type(exc).__name__})") from exc
+    unknown = [n for n in names if n not in table]
+    if unknown or len(scales) != len(names):
+        raise UserError(f"effect {name!r}: stored terms {unknown or names} are not terms this version knows "
+                        f"(known: {', '.join(sorted(table))})")
+    return library_effect([table[n] for n in names], np.asarray(scales), name=name)
+
+
+def term_library():
+    """(TERMS, library_effect) of the module of candidate terms, :mod:`discover` (in
+    ``cosim_plugins.diagnose`` since diagnose has a package of its own; ``cosim_plugins.identify`` before)."""
+    import importlib
+
+    for name in ("cosim_plugins.diagnose.discover", "cosim_plugins.identify.discover"):
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError:
             continue
-        text = sources[name]
-        path = Path(tempfile.gettempdir()) / "cosim-effects" / f"{hashlib.sha256(text.encode()).hexdigest()[:16]}.py"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if not path.is_file():
-            path.write_text(text)
-        load_effect_files([path])
-        known = known_effects()
-    missing = [n for n in names if n not in known]
-    if missing:
-        raise UserError(f"the model uses effects {missing} that are not registered and whose source the model "
-                        "file does not hold: load their effect file first (--effects-file)")
-    return [known[n] for n in names]
+        return module.TERMS, module.library_effect
+    raise UserError("the table of candidate terms (cosim_plugins.diagnose.discover) is not installed")
+
+
+def library_data(effects) -> dict:
+    """{name: {"terms": [...], "scales": [...]}} for effects made by :func:`.discover.library_effect`:
+    what a model file stores for them instead of code."""
+    return {e.name: {"terms": list(e.terms), "scales": [p.typical() for p in e.params]}
+            for e in effects if getattr(e, "terms", ())}
+
+
+_SOURCES: dict[str, str] = {}  # module name -> source text of effects imported from model files
+
+
+def _import_source(name: str, text: str) -> None:
+    """Import a model file's effect source from memory as a plugin module (no file is written)."""
+    import hashlib
+    import linecache
+    import sys
+    import types
+
+    from cosim.contract.plugins import get_plugin_manager
+
+    mod_name = f"{USER_MODULE_PREFIX}model_{hashlib.sha256(text.encode()).hexdigest()[:16]}"
+    pm = get_plugin_manager()
+    if pm.has_plugin(mod_name):
+        return
+    filename = f"<model file code: effect {name}>"
+    module = types.ModuleType(mod_name)
+    module.__file__ = filename
+    linecache.cache[filename] = (len(text), None, text.splitlines(keepends=True), filename)  # for inspect.getsource
+    try:
+        exec(compile(text, filename, "exec"), module.__dict__)  # noqa: S102 (run only with --trust-model-code)
+    except Exception as exc:  # the carried code: report whatever it raised
+        raise UserError(f"the code the model file carries for effect {name!r} failed: "
+                        f"{type(exc).__name__}: {exc}") from exc
+    sys.modules[mod_name] = module
+    _SOURCES[mod_name] = text
+    pm.register(module, mod_name)

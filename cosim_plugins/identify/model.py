@@ -169,7 +169,10 @@ class Model:
         model = cls(**header["options"])
         model.dt_s = header["dt_s"]
         model.train_time_s = header.get("train_time_s")
-        model._restore(header["meta"], arrays)
+        try:
+            model._restore(header["meta"], arrays)
+        except UserError as exc:
+            raise UserError(f"model file {path}: {exc}") from exc
         return model
 
 

@@ -51,7 +51,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from cosim.contract.errors import UserError
-from cosim_plugins.identify.effect import effect_sources, restore_effects
+from cosim_plugins.identify.effect import effect_sources, library_data, restore_effects
 from cosim_plugins.identify.model import Model
 from cosim_plugins.identify.terms import ForceTerm, Param
 
@@ -435,12 +435,13 @@ class PhysicalModel(Model):
 
     def _state(self):
         meta = {"params": self.params(), "terms": [t.name for t in self.terms], "fit_info": self.fit_info,
-                "effect_sources": effect_sources(self.terms)}
+                "effect_sources": effect_sources(self.terms), "effect_terms": library_data(self.terms)}
         return meta, {"theta": self._theta}
 
     def _restore(self, meta, arrays):
         if meta["terms"]:
-            self.terms = restore_effects(meta["terms"], meta.get("effect_sources", {}))
+            self.terms = restore_effects(meta["terms"], meta.get("effect_sources", {}),
+                                         meta.get("effect_terms", {}))
         self._theta = np.asarray(arrays["theta"], dtype=float)
         self.fit_info = meta.get("fit_info", {})
 

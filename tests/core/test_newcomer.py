@@ -102,19 +102,6 @@ def test_plugins_lists_every_profile_with_what_it_is(capsys):
     assert "40 ms" in lab and "cruise" in lab
 
 
-def test_the_web_viewer_prints_one_address_that_opens_the_recording(tmp_path, monkeypatch, capsys):
-    (tmp_path / "recording.rrd").write_bytes(b"rrd")
-    called = {}
-    monkeypatch.setattr(commands, "_call_viewer", lambda cmd, env=None: called.update(cmd=cmd, env=env) or 0)
-    assert main(["replay", str(tmp_path), "--web", "--port", "9191"]) == 0
-    out = capsys.readouterr().out
-    addresses = [word for word in out.split() if "://" in word]
-    assert addresses == ["http://127.0.0.1:9191/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A9876%2Fproxy"], out
-    cmd = called["cmd"]
-    assert cmd[cmd.index("--bind") + 1] == "127.0.0.1"      # this machine only, unless asked
-    assert cmd[cmd.index("--port") + 1] == "9876" and called["env"]["RUST_LOG"] == "warn"
-
-
 def test_python_m_cosim_without_the_dependencies_says_what_to_do():
     """`python -S` has no site-packages: as a Python without the venv's packages."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}

@@ -49,9 +49,10 @@ def test_wrong_kind_version_or_file(rich_data, tmp_path, monkeypatch):
         load_model(tmp_path / "missing.npz")
 
 
-def test_a_model_with_an_effect_from_a_users_file_opens_without_that_file(tmp_path):
+def test_a_model_with_an_effect_from_a_users_file_opens_without_that_file(tmp_path, monkeypatch):
     """The file's source travels inside the model: a fresh process (here: a reset plugin manager, the file moved
-    away) opens it and predicts the same; a built-in effect needs no source."""
+    away) opens it, when the user trusts the code it carries, and predicts the same; a built-in effect needs no
+    source (tests/security/test_model_files.py: without trust it refuses)."""
     import shutil
     from pathlib import Path
 
@@ -69,6 +70,10 @@ def test_a_model_with_an_effect_from_a_users_file_opens_without_that_file(tmp_pa
         path = model.save(tmp_path / "swirl.npz")
         src.unlink()
         plugins.reset()
+        with pytest.raises(UserError, match="effect 'swirl' is Python code carried inside the model file"):
+            load_model(path)
+        plugins.reset()
+        monkeypatch.setenv("COSIM_TRUST_MODEL_CODE", "1")
         loaded = load_model(path)
         assert [t.name for t in loaded.terms] == ["swirl", "background_flow"]
         x = np.array([[10.0, -20.0, 5.0, 1.0, 2.0, 0.0]])

@@ -1,0 +1,134 @@
+"""Per-component rights in a ``--hosts`` run (three loopback addresses standing in for three machines):
+a holder of the camera host's certificate, connecting from elsewhere, cannot change what the coil driver
+applies; plain TCP beyond loopback is refused."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.cli import main
+from cosim.runtime import bus
+from cosim.runtime.bus import TlsFiles
+from cosim.runtime.runner import RunRequest, run
+from cosim.runtime.wiring import build_wiring
+from cosim.scenario.schema import load_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = ROOT / "scenarios" / "racetrack.yaml"
+SHORT = ["duration_s=4"]  # paced at real time: the forger has 4 s of stepping to act in
+FORGED_HZ = 55.5555  # a drive frequency the controller never commands
+
+
+def _free_port(address: str) -> int:
+    with socket.socket() as s:
+        s.bind((address, 0))
+        return s.getsockname()[1]
+
+
+def _hosts(folder: Path) -> Path:
+    ports = {a: _free_port(a) for a in ("127.0.0.1", "127.0.0.2", "127.0.0.3")}
+    hosts = folder / "hosts.yaml"
+    hosts.write_text(f"""
+wait_s: 60
+tls: {{ca: certs/ca.pem}}
+scheduler: {{host: sim, listen: tls/127.0.0.1:{ports['127.0.0.1']}}}
+hosts:
+  sim: {{address: 127.0.0.1, cert: certs/sim.pem, key: certs/sim.key}}
+  cam: {{address: 127.0.0.2, launch: local, cert: certs/cam.pem, key: certs/cam.key}}
+  lab: {{address: 127.0.0.3, launch: local, cert: certs/lab.pem, key: certs/lab.key}}
+components:
+  camera: {{host: cam, listen: tls/127.0.0.2:{ports['127.0.0.2']}}}
+  coil_driver: {{host: lab, listen: tls/127.0.0.3:{ports['127.0.0.3']}}}
+""")
+    assert main(["certs", str(hosts)]) == 0
+    return hosts
+
+
+def _node_args(run_pid: int, component: str, timeout_s: float = 90.0) -> list[str]:
+    """The command line of the run's node of ``component`` (a child of ``run_pid``), once it is up."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for status in Path("/proc").glob("[0-9]*/status"):
+            try:
+                if f"PPid:\t{run_pid}\n" not in status.read_text():
+                    continue
+                args = (status.parent / "cmdline").read_bytes().decode().split("\0")
+            except OSError:
+                continue
+            if "node" in args and component in args:
+                return args
+        time.sleep(0.05)
+    raise AssertionError(f"no node of {component} appeared")
+
+
+def test_the_camera_certificate_cannot_drive_the_coils(tmp_path):
+    hosts = _hosts(tmp_path)
+    certs = tmp_path / "certs"
+    stolen = TlsFiles(certs / "ca.pem", certs / "cam.pem", certs / "cam.key")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    run_proc = subprocess.Popen([sys.executable, "-m", "cosim.cli", "run", str(SCENARIO), "--processes", "--hosts",
+                                 str(hosts), "--out", "run", "--quiet", "--realtime", "1",
+                                 *[a for s in SHORT for a in ("--set", s)]],
+                                cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    session = None
+    try:
+        args = _node_args(run_proc.pid, "coil_driver")
+        run_id = args[args.index("--run-id") + 1]
+        endpoints = [args[args.index("--listen") + 1], *[a for i, a in enumerate(args) if args[i - 1] == "--connect"]]
+        # the camera host's files, used from another address: the coil driver's node, the scheduler, all
+        session = bus.open_session(connect=endpoints, tls=stolen)
+        scenario = load_scenario(SCENARIO, SHORT)
+        size = sum(int(np.prod(p.shape)) for p in build_wiring(scenario).outputs["controller"])
+        forged = np.full(size, FORGED_HZ)
+        out = bus.publisher(session, bus.outputs_key(run_id, "controller"))
+        cmd = bus.publisher(session, bus.ctl_key(run_id, "coil_driver", "cmd"))
+        tick_pub = bus.publisher(session, bus.tick_key(run_id))
+        for _ in range(300):  # bounded: up to 300 bursts (15 s), every tick stamped ahead of the controller
+            for tick in range(scenario.n_steps):
+                out.put(forged.tobytes(), attachment=bus.encode_tick(tick))
+            tick_pub.put(bus.encode_json({"until": scenario.n_steps}))
+            cmd.put(bus.encode_json({"cmd": "stop"}))
+            if run_proc.poll() is not None:
+                break
+            time.sleep(0.05)
+        _, err = run_proc.communicate(timeout=120)
+    finally:
+        if session is not None:
+            session.close()
+        if run_proc.poll() is None:
+            run_proc.kill()
+            run_proc.communicate()
+    assert run_proc.returncode == 0, err
+    one = run(RunRequest(SCENARIO, tmp_path / "one", SHORT, progress=False))
+    assert one["status"] == "ok"
+    log = (tmp_path / "run" / "log.csv").read_text()
+    assert str(FORGED_HZ) not in log
+    assert log == (tmp_path / "one" / "log.csv").read_text()  # what the coil driver applied: the controller's
+
+
+def test_plain_tcp_beyond_loopback_is_refused(tmp_path, capsys):
+    hosts = tmp_path / "hosts.yaml"
+    hosts.write_text("scheduler: {host: one, listen: tcp/0.0.0.0:7447}\nhosts:\n  one: {address: 0.0.0.0}\n")
+    code = main(["run", str(ROOT / "tests" / "core" / "data" / "toy.yaml"), "--processes", "--hosts", str(hosts),
+                 "--out", str(tmp_path / "run")])
+    assert code == 2
+    assert ("scheduler.listen (line 1): tcp/0.0.0.0:7447: plain TCP beyond loopback lets anyone on the network "
+            "join the run") in capsys.readouterr().err
+
+
+def test_rights_text_round_trips_and_bad_text_is_named():
+    from cosim.contract.errors import UserError
+    from cosim.scale.rights import Rights, format_rights, parse_rights
+
+    rights = Rights("sim", {"sim": ("plant", "controller"), "cam": ("camera",)})
+    assert parse_rights(format_rights(rights)) == rights
+    with pytest.raises(UserError, match="expected SCHEDULER_HOST;HOST=COMP"):
+        parse_rights("sim;cam")
