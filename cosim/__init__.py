@@ -12,13 +12,13 @@ The names below are the public API a plugin imports; ``FmuComponent`` and
 ``component_recording`` are loaded on first use (they bring fmpy and rerun).
 """
 
-from cosim.contract.component import Component, ComponentError, ComponentFault, Port
+from cosim.contract.component import Component, ComponentError, ComponentFault, InputEnded, Port
 from cosim.contract.errors import UserError
 from cosim.contract.hookspecs import hookimpl, hookspec
 from cosim.contract.params import Param, read_params, whole_ticks
 
-__all__ = ["Component", "ComponentError", "ComponentFault", "FmuComponent", "Param", "Port", "UserError",
-           "component_recording", "hookimpl", "hookspec", "read_params", "whole_ticks"]
+__all__ = ["Component", "ComponentError", "ComponentFault", "FmuComponent", "InputEnded", "Param", "Port",
+           "UserError", "component_recording", "hookimpl", "hookspec", "read_params", "whole_ticks"]
 
 
 def __getattr__(name: str):

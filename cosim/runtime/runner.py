@@ -71,6 +71,8 @@ class RunRequest:
     #: open workers a sweep runs on instead of its own (several sweeps in a row: see
     #: :func:`cosim.scale.executors.workers`)
     workers: Any = None
+    #: cut the recording into parts of this much simulated time [s] (``part-000/``, ...); None: one
+    rotate_s: float | None = None
 
 
 @contextlib.contextmanager
@@ -101,6 +103,11 @@ def stop_on_signals():
 def run(request: RunRequest) -> dict[str, Any]:
     """Run the scenario, or every combination of its sweep; returns the summary written."""
     scenario = load_scenario(request.scenario_file, request.overrides)
+    if scenario.sweep and (scenario.n_steps is None or None in scenario.sweep.get("duration_s", [])):
+        from cosim.contract.errors import UserError
+
+        raise UserError(f"{request.scenario_file}: a sweep runs its combinations one after another, so each "
+                        "needs a duration_s (null, run until stopped, is for a single run)")
     with stop_on_signals() as stop:
         if not scenario.sweep:
             return run_one(scenario, request, stop)
@@ -123,7 +130,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     wiring = build_wiring(scenario)
     path = make_path(scenario.path.plugin, scenario.path.params) if scenario.path else None
     run_id = secrets.token_hex(4)
-    recorder = TraceRecorder(scenario, wiring, out, path)
+    recorder = TraceRecorder(scenario, wiring, out, path, request.rotate_s)
     recorder.open()
     realtime = request.realtime or scenario.realtime
     write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
@@ -179,8 +186,11 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     from cosim.record.rerun_log import merge_parts
 
     merge_parts(out)  # what components recorded themselves, now that their processes have ended
+    stopped = stop.event.is_set() and (scenario.n_steps is None or completed < scenario.n_steps)
     summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s if scheduler else 0.0, total_wall,
-                       error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
+                       error, stop.reason if stopped else None)
+    if scheduler and scheduler.input_ended and not error:
+        summary["end"] = f"input ended ({scheduler.input_ended})"
     if scheduler and scheduler.pacer:
         summary["realtime"] = scheduler.pacer.summary()
     write_json(out / "summary.json", summary)
@@ -231,7 +241,7 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         "wall_time_s": wall_s,
         "realtime_factor": sim / wall_s if wall_s > 0 else None,
         "total_wall_time_s": total_wall_s,
-        "files": {k: v.name for k, v in recorder.files.items()},
+        "files": recorder.file_names(),
     }
 
 
