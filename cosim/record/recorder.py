@@ -28,6 +28,7 @@ chunks left behind.
 
 from __future__ import annotations
 
+import threading
 import time
 from pathlib import Path
 
@@ -94,6 +95,7 @@ class TraceRecorder:
         self._last_write = time.monotonic()
         self._trace = self._rrd = None
         self._files: dict = {}  # the views' files, by key
+        self._joining: list[threading.Thread] = []  # the parts' traces being joined into trace.npz
         from cosim.record.figures import RunFigures
 
         self.figures = RunFigures(self)
@@ -207,14 +209,22 @@ class TraceRecorder:
         for rows in self.rows.values():
             rows.fill(np.nan)
 
-    def _close_part(self) -> None:
-        """Write out and close the files of the part under way (trace.npz made from its chunks)."""
+    def _close_part(self, last: bool = False) -> None:
+        """Write out and close the files of the part under way; its trace.npz is made from its chunks
+        (in a thread while the run goes on, unless it is the ``last``)."""
         self.write_out(recording=True)
         self._rrd.close()
         for file in self._files.values():
             file.close()
-        self._trace.finish(self._held(self._trace_start, self.ticks), self.part_dir / "trace.npz")
+        rest = {k: np.array(v) for k, v in self._held(self._trace_start, self.ticks).items()}
+        job = threading.Thread(target=self._trace.finish, args=(rest, self.part_dir / "trace.npz"),
+                               name="cosim-trace-join", daemon=False)
+        job.start()
+        self._joining.append(job)
         self._drop_held()
+        if last:
+            for job in self._joining:
+                job.join()
         if self.part_ticks is None:
             self.files["trace"] = self.part_dir / "trace.npz"
 
@@ -228,7 +238,7 @@ class TraceRecorder:
         self.write_out()
         if event:
             self._rrd.event(self.ticks * self.scenario.dt_s, event, "ERROR" if error else "WARN")
-        self._close_part()
+        self._close_part(last=True)
 
     def file_names(self) -> dict:
         """summary.json's ``files``: each file's name (with ``rotate_s``, ``{"parts": [folder, ...]}``;

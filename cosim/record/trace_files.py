@@ -14,8 +14,9 @@ When the run ends the chunks are joined into ``trace.npz`` (compressed, the layo
 :func:`load_trace` returns) column by column, each chunk's column read once, never the
 whole trace in memory, and the folder is removed. :func:`load_trace` reads a
 ``trace.npz``, a ``trace.chunks/`` (a run going, or one that was killed) and the single
-``trace.part`` of runs recorded before chunks; :func:`iter_trace` reads a trace chunk by
-chunk.
+``trace.part`` of runs recorded before chunks, and the parts of a run recorded in parts
+(``part-000/``, ... of ``cosim run --rotate``) one after another; :func:`iter_trace` reads a
+trace chunk by chunk.
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ import numpy as np
 CHUNKS_DIR = "trace.chunks"
 INDEX = "index.json"
 CURRENT = "current.part"
+#: the folders of a run recorded in parts (``cosim run --rotate``), in order
+PARTS_GLOB = "part-[0-9][0-9][0-9]"
 
 
 class ChunkedTrace:
@@ -153,12 +156,17 @@ def iter_trace(run_dir: str | Path, names: list[str] | None = None) -> Iterator[
         columns = [(n, tuple(s)) for n, s in json.loads(layout.read_text())["columns"]]
         yield keep(_read_part(part, columns))
         return
+    parts = sorted(run_dir.glob(PARTS_GLOB))
+    if parts:  # a run recorded in parts (cosim run --rotate): each in turn
+        for folder in parts:
+            yield from iter_trace(folder, names)
+        return
     raise _layout_error(run_dir)
 
 
 def load_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
     """A run's trace: ``trace.npz``; or, of a run going or killed, ``trace.chunks/`` (every whole
-    row written) or the ``trace.part`` of the layout before chunks.
+    row written) or the ``trace.part`` of the layout before chunks; or a run's parts joined.
 
     Returns ``{"t_s": (n,), "component.port": (n, *shape), ...}``.
     """
@@ -166,5 +174,5 @@ def load_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
     if (run_dir / "trace.npz").is_file():
         with np.load(run_dir / "trace.npz") as data:
             return {k: data[k] for k in data.files}
-    pieces = list(iter_trace(run_dir))
+    pieces = [p for p in iter_trace(run_dir) if len(p["t_s"])] or list(iter_trace(run_dir))[:1]
     return {k: np.concatenate([p[k] for p in pieces]) for k in pieces[0]}

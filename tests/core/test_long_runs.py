@@ -125,6 +125,7 @@ def test_rotated_parts_hold_the_run_between_them(tmp_path):
     joined = {k: np.concatenate([t[k] for t in traces]) for k in traces[0]}
     reference = load_trace(tmp_path / "whole")
     assert _same_trace(joined, reference)
+    assert _same_trace(load_trace(out), reference)  # the parts read one after another
     for part in summary["files"]["parts"]:
         assert (out / part / "recording.rrd").stat().st_size > 0 and (out / part / "log.csv").is_file()
     for key in SHARED:
