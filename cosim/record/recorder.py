@@ -92,6 +92,8 @@ class TraceRecorder:
             raise ValueError(f"rotate_s={rotate_s}: a part must last > 0 s")
         self.part_ticks = None if rotate_s is None else max(int(round(rotate_s / scenario.dt_s)), 1)
         self.part_start = 0  # the first tick of the part under way
+        #: the next tick at which the chunk is full or a new part is due
+        self._cut = self.capacity if self.part_ticks is None else min(self.capacity, self.part_ticks)
         self._last_write = time.monotonic()
         self._trace = self._rrd = None
         self._files: dict = {}  # the views' files, by key
@@ -133,12 +135,16 @@ class TraceRecorder:
         component missing from it (its step failed) stays NaN."""
         if self.closed:
             return
-        if self.part_ticks is not None and tick - self.part_start >= self.part_ticks:
-            self._close_part()
-            self.part_start = tick
-            self._open_part()
-        elif tick - self.base >= self.capacity:
-            self._seal()
+        if tick >= self._cut:  # one test a tick: the chunk is full, or a new part is due
+            if self.part_ticks is not None and tick - self.part_start >= self.part_ticks:
+                self._close_part()
+                self.part_start = tick
+                self._open_part()
+            else:
+                self._seal()
+            self._cut = self.base + self.capacity
+            if self.part_ticks is not None:
+                self._cut = min(self._cut, self.part_start + self.part_ticks)
         i = tick - self.base
         for comp, row in rows.items():
             self.rows[comp][i] = row

@@ -183,3 +183,14 @@ def test_replay_opens_the_parts_asked_for(tmp_path):
         recording_files(tmp_path, "x")
     with pytest.raises(UserError, match="has parts 0-3"):
         recording_files(tmp_path, "7")
+
+
+@pytest.mark.parametrize("duration", ["3600", "604800", "null"])  # an hour, a week, until stopped
+def test_the_recorder_holds_one_chunk_whatever_the_duration(tmp_path, duration):
+    from cosim.record.recorder import CHUNK_BYTES, TraceRecorder
+    from cosim.runtime.wiring import build_wiring
+
+    scenario = load_scenario(TOY, [f"duration_s={duration}"])
+    recorder = TraceRecorder(scenario, build_wiring(scenario), tmp_path)
+    assert 0 < sum(rows.nbytes for rows in recorder.rows.values()) <= CHUNK_BYTES
+    assert recorder.figures.detection.counts.nbytes < 400_000  # the histogram: fixed
