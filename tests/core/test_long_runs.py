@@ -194,3 +194,15 @@ def test_the_recorder_holds_one_chunk_whatever_the_duration(tmp_path, duration):
     recorder = TraceRecorder(scenario, build_wiring(scenario), tmp_path)
     assert 0 < sum(rows.nbytes for rows in recorder.rows.values()) <= CHUNK_BYTES
     assert recorder.figures.detection.counts.nbytes < 400_000  # the histogram: fixed
+
+
+def test_bad_rotate_and_parts_are_clear_errors(tmp_path, capsys):
+    from cosim.cli.main import main
+
+    assert main(["run", str(TOY), "--out", str(tmp_path / "r"), "--rotate", "0"]) == 2
+    assert "--rotate 0: the hours per part must be > 0" in capsys.readouterr().err
+    assert main(["validate", str(TOY), "--set", "duration_s=null"]) == 0
+    assert "until stopped" in capsys.readouterr().out
+    run(RunRequest(TOY, tmp_path / "one", ["duration_s=0.2"], progress=False))
+    assert main(["replay", str(tmp_path / "one"), "--parts", "1"]) == 2
+    assert "was not recorded in parts (cosim run --rotate)" in capsys.readouterr().err
