@@ -226,7 +226,7 @@ class TraceRecorder:
         job = threading.Thread(target=self._trace.finish, args=(rest, self.part_dir / "trace.npz"),
                                name="cosim-trace-join", daemon=False)
         job.start()
-        self._joining.append(job)
+        self._joining = [j for j in self._joining if j.is_alive()] + [job]
         self._drop_held()
         if last:
             for job in self._joining:
