@@ -12,8 +12,15 @@ Run figures (all in mm or ms):
   at its capture time (the ``capture_time`` role; a camera without one is
   taken to deliver at capture), {median, p99}.
 
+They are computed as the run goes (:mod:`cosim.record.figures`): the means,
+spreads and maxima equal the whole run's up to rounding, the medians and
+p99 are within a relative 5e-4 of ``np.percentile``'s
+(:mod:`cosim.record.streaming`); :func:`trace_figures` computes them exactly
+from a whole trace.
+
 Components add figures of their own from their recorded outputs
-(:meth:`cosim.contract.component.Component.summary_figures`); a key another component
+(:meth:`cosim.contract.component.Component.summary_figures`, batch by batch through
+its ``summary_accumulator``); a key another component
 or the framework already uses is prefixed with the component's name.
 """
 
