@@ -15,7 +15,7 @@ The names below are the public API a plugin imports; ``FmuComponent`` and
 import sys
 
 try:
-    from cosim.contract.component import Component, ComponentError, ComponentFault, Port
+    from cosim.contract.component import Component, ComponentError, ComponentFault, InputEnded, Port
     from cosim.contract.errors import UserError
     from cosim.contract.hookspecs import hookimpl, hookspec
     from cosim.contract.params import Param, read_params, whole_ticks
@@ -26,8 +26,8 @@ except ModuleNotFoundError as _missing:  # `python -m cosim` from a Python witho
              "Run cosim with the Python it is installed in: `make venv` makes .venv in a checkout, then "
              "`.venv/bin/cosim` (or `. .venv/bin/activate` and `cosim`); or `pip install .` into this one.")
 
-__all__ = ["Component", "ComponentError", "ComponentFault", "FmuComponent", "Param", "Port", "UserError",
-           "component_recording", "hookimpl", "hookspec", "read_params", "whole_ticks"]
+__all__ = ["Component", "ComponentError", "ComponentFault", "FmuComponent", "InputEnded", "Param", "Port",
+           "UserError", "component_recording", "hookimpl", "hookspec", "read_params", "whole_ticks"]
 
 
 def __getattr__(name: str):

@@ -75,8 +75,8 @@ def diagnose_table_and_verdict(text: str) -> str:
 
 HIDDEN_FLOW = ("--set components.plant.params.background_flow_on=true "
                "--set components.plant.params.flow_x=0.003")
-DIAGNOSE_CODE = ("cosim_plugins.identify", "cosim_plugins.effects", "cosim_plugins.models", "cosim_plugins.plant",
-                 "cosim_plugins/scenarios/diagnose")
+DIAGNOSE_CODE = ("cosim_plugins.identify", "cosim_plugins.diagnose", "cosim_plugins.effects", "cosim_plugins.models",
+                 "cosim_plugins.plant", "cosim_plugins/scenarios/diagnose")
 
 BLOCKS: dict[str, Block] = {
     "first-steps": Block(("cosim run racetrack --set components.camera.params.interval_s=0.1 "

@@ -33,6 +33,12 @@ def add_commands(sub) -> None:
                    help="pace the ticks on the wall clock (FACTOR times real time, default 1); late ticks "
                         "are skipped and counted in summary.json's 'realtime'")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary lines (errors only)")
+    p.add_argument("--until-stopped", action="store_true",
+                   help="run until Ctrl-C, SIGTERM, a fault or the end of a replayed input (duration_s: null); "
+                        "the record is finished as a timed run's")
+    p.add_argument("--rotate", type=float, default=None, metavar="HOURS",
+                   help="start a new recording part (part-000/, part-001/, ...: recording, trace, log) every "
+                        "HOURS of simulated time; `cosim replay` opens the parts together")
     p.add_argument("--hosts", type=Path, default=None, metavar="HOSTS.yaml",
                    help="with --processes: place the nodes on machines (host, endpoint, CPUs per component; "
                         "launched over ssh or printed to start by hand; mutual TLS between machines)")
@@ -73,6 +79,12 @@ def add_commands(sub) -> None:
     p.add_argument("--bind", default="127.0.0.1", metavar="ADDRESS",
                    help="the address the web viewer listens on with --web (default 127.0.0.1: this machine only; "
                         "0.0.0.0 opens it to the network, unauthenticated)")
+    p.add_argument("--parts", default=None, metavar="N|A-B",
+                   help="of a run recorded in parts (cosim run --rotate): open only these (e.g. 3 or 2-4; "
+                        "default all), so a long run need not be loaded at once")
+    p.add_argument("--memory-limit", default=None, metavar="SIZE",
+                   help="the desktop viewer drops the oldest data beyond this much memory (e.g. 2GB or 25%%; "
+                        "rerun's --memory-limit)")
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("node", help="serve one component of a scenario in this process (used by --processes)")
@@ -112,6 +124,10 @@ def cmd_run(args) -> int:
     from cosim.scenario.schema import load_scenario
 
     args.scenario = resolve_scenario(args.scenario)
+    if args.until_stopped:
+        args.overrides = [*args.overrides, "duration_s=null"]
+    if args.rotate is not None and not args.rotate > 0:
+        raise UserError(f"--rotate {args.rotate:g}: the hours per part must be > 0")
     out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
     if args.realtime is not None and not args.realtime > 0:
         raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
@@ -139,7 +155,8 @@ def cmd_run(args) -> int:
     summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
                              args.node_cpus or "auto", args.realtime, jobs=jobs, executor=args.executor,
                              run_timeout_s=args.run_timeout, hosts=args.hosts,
-                             executor_tls=TlsFiles(*tls_args) if all(tls_args) else None))
+                             executor_tls=TlsFiles(*tls_args) if all(tls_args) else None,
+                             rotate_s=None if args.rotate is None else args.rotate * 3600.0))
     if not args.quiet:
         _print_run(summary, out)
     if summary.get("status") == "interrupted":
@@ -180,10 +197,12 @@ def _print_run(summary: dict, out: Path) -> None:
         if rt:
             print(f"real-time pacing x{rt['factor']:g}: {rt['missed']} of {rt['ticks'] + rt['missed']} ticks "
                   f"missed, lateness p99 {rt['lateness_ms']['p99']} ms (max {rt['lateness_ms']['max']} ms)")
+    parts = summary.get("files", {}).get("parts")
     if "sweep" in summary:  # every run's folder (and recording) is listed in the table
         print(f"table:     {out / 'summary.md'}")
     else:
-        print(f"recording: {out / 'recording.rrd'}")
+        print(f"recording: {out if parts else out / 'recording.rrd'}"
+              + (f" ({len(parts)} parts: {parts[0]}/ .. {parts[-1]}/)" if parts else ""))
     print(f"summary:   {out / 'summary.json'}")
 
 
@@ -251,14 +270,38 @@ def cmd_plugins(args) -> int:
     return 0
 
 
-def cmd_replay(args) -> int:
-    """``cosim replay``: open a run's recording in the rerun viewer, or serve it to a browser (``--web``)."""
-    rrd = args.run_dir / "recording.rrd" if args.run_dir.is_dir() else args.run_dir
-    if not rrd.is_file():
-        raise UserError(f"no recording at {rrd}")
+def recording_files(run_dir: Path, parts: str | None = None) -> list[Path]:
+    """The .rrd files of a run, to open together: ``recording.rrd`` or, of a run recorded in parts
+    (``--rotate``), each ``part-NNN/recording.rrd`` (``parts``: ``N`` or ``A-B``, only those), then the
+    parts components recorded themselves (``recording.<component>.rrd``). ``run_dir`` may be an .rrd."""
+    if not run_dir.is_dir():
+        if not run_dir.is_file():
+            raise UserError(f"no recording at {run_dir}")
+        return [run_dir]
+    rotated = sorted(run_dir.glob("part-[0-9][0-9][0-9]/recording.rrd"))
+    if parts is not None:
+        if not rotated:
+            raise UserError(f"--parts {parts}: {run_dir} was not recorded in parts (cosim run --rotate)")
+        match = re.fullmatch(r"(\d+)(?:-(\d+))?", parts.strip())
+        if not match:
+            raise UserError(f"--parts {parts}: expected a part number N or a range A-B")
+        first, last = int(match[1]), int(match[2] or match[1])
+        rotated = [f for f in rotated if first <= int(f.parent.name.split("-")[1]) <= last]
+        if not rotated:
+            raise UserError(f"--parts {parts}: {run_dir} has parts 0-{len(list(run_dir.glob('part-*'))) - 1}")
+    main = rotated or [run_dir / "recording.rrd"]
+    if not main[0].is_file():
+        raise UserError(f"no recording at {main[0]}")
     # the parts components recorded themselves (recording.<component>.rrd): one recording in the viewer
-    parts = sorted(args.run_dir.glob("recording.*.rrd")) if args.run_dir.is_dir() else []
-    files = [str(rrd), *map(str, parts)]
+    return [*main, *sorted(run_dir.glob("recording.*.rrd"))]
+
+
+def cmd_replay(args) -> int:
+    """``cosim replay``: open a run's recording (all its parts) in the rerun viewer, or serve it to a browser
+    (``--web``)."""
+    found = recording_files(args.run_dir, args.parts)
+    rrd = found[0]
+    files = [str(f) for f in found]
     viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     if not Path(viewer).exists():
         raise UserError("the rerun viewer is not installed (pip install rerun-sdk)")
@@ -271,7 +314,7 @@ def cmd_replay(args) -> int:
                         f"`cosim replay {args.run_dir} --web` serves it to a browser instead, and "
                         f"`rerun rrd stats {rrd}` lists what the recording holds")
     print(f"opening {', '.join(files)} in the rerun viewer")
-    return _call_viewer([viewer, *files])
+    return _call_viewer([viewer, *(["--memory-limit", args.memory_limit] if args.memory_limit else []), *files])
 
 
 def _call_viewer(command: list[str], env: dict | None = None) -> int:

@@ -10,7 +10,7 @@ global RNG, so a run is reproducible from its scenario and seed.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Protocol
 
 import numpy as np
 
@@ -19,6 +19,11 @@ from cosim.contract.errors import UserError
 
 class ComponentError(UserError):
     """A component rejected its parameters or failed while stepping."""
+
+
+class InputEnded(Exception):
+    """Raised by a component's ``step`` when the recorded input it replays has run out: the run
+    ends there, as one that ran its duration does (status ``ok``), with the ticks before this one."""
 
 
 class ComponentFault(RuntimeError):
@@ -131,6 +136,18 @@ class Component:
         join the summary's top level and must not reuse the framework's. Default: none."""
         return {}
 
+    @classmethod
+    def summary_accumulator(cls) -> SummaryAccumulator | None:
+        """How the run computes :meth:`summary_figures` as it goes, batch by batch: an object
+        with ``add(outputs)`` (``{port: (batch ticks, *port shape)}``, the ticks in order) and
+        ``figures()`` (the figures of every batch added). Override it with one that keeps
+        counts or running sums, so a run of any length stays in bounded memory. Default: None
+        when :meth:`summary_figures` is not overridden, else one that keeps every batch and
+        calls it at the end (its memory grows with the run)."""
+        if cls.summary_figures.__func__ is Component.summary_figures.__func__:
+            return None
+        return KeepEveryBatch(cls.summary_figures)
+
     def initial_outputs(self) -> dict[str, np.ndarray]:
         """Outputs before the first step (used by delayed edges at t = 0). Default: zeros."""
         return {p.name: p.zeros() for p in self.outputs}
@@ -152,3 +169,26 @@ class Component:
         ``fault``. It must be idempotent."""
 
     # Optional: snapshot()/restore(state) for components that support rewinding.
+
+
+class SummaryAccumulator(Protocol):
+    """Figures of a component's outputs computed batch by batch (see :meth:`Component.summary_accumulator`)."""
+
+    def add(self, outputs: Mapping[str, np.ndarray]) -> None: ...
+
+    def figures(self) -> dict[str, Any]: ...
+
+
+class KeepEveryBatch:
+    """The default accumulator: keeps every batch, calls ``summary_figures`` on all of them at the end."""
+
+    def __init__(self, summary_figures):
+        self._figures_of, self._batches = summary_figures, []
+
+    def add(self, outputs: Mapping[str, np.ndarray]) -> None:
+        self._batches.append({k: np.array(v) for k, v in outputs.items()})
+
+    def figures(self) -> dict[str, Any]:
+        if not self._batches:
+            return {}
+        return self._figures_of({k: np.concatenate([b[k] for b in self._batches]) for k in self._batches[0]})

@@ -1,37 +1,42 @@
-"""Observers that record a run, and the files they write as it goes.
+"""Observers that record a run, and the files they write as it goes, in memory bounded whatever its length.
 
-:class:`TraceRecorder` keeps every port's value at every tick in memory
-(preallocated arrays, for the run's figures) and writes them out as the run
-goes, in batches: the log and the trace at least every ``FLUSH_EVERY_S`` of
-wall time and of simulated time, the recording every ``FLUSH_EVERY_S`` of
-wall time:
+:class:`TraceRecorder` holds the ports' values of the ticks not yet written out
+(at most one chunk: ``CHUNK_BYTES`` of rows), computes the summary's figures
+as it goes (:mod:`cosim.record.figures`), and writes out as the run goes, in
+batches: the log and the trace at least every ``FLUSH_EVERY_S`` of wall time
+and of simulated time, the recording every ``FLUSH_EVERY_S`` of wall time and
+whenever the chunk is full:
 
 * the files the domain's views write (:mod:`cosim.record.views`, e.g. a
   raw log in the domain's own format);
-* ``trace.part``: every port's rows so far (float64, the layout in
-  ``trace.part.json``), turned into ``trace.npz`` when the run ends (the full
-  trace: ``t_s`` plus one array per ``component.port``, shape
-  (ticks, *port shape), SI units) and then removed;
+* the trace: ``trace.chunks/`` while the run goes (a chunk file per full chunk
+  plus the rows of the one under way, see :mod:`cosim.record.trace_files`),
+  joined into ``trace.npz`` when the run ends (the full trace: ``t_s`` plus
+  one array per ``component.port``, shape (ticks, *port shape), SI units);
 * ``recording.rrd``: the rerun recording (see :mod:`cosim.record.rerun_log`); a
   component that logs images or the like itself writes its part next to it
   (``recording.<component>.rrd``, the same recording id), and its views join
   the layout here.
 
-So a run stopped, failed or killed keeps what it recorded: a killed
-process loses at most the last batch; :func:`load_trace` reads a
-``trace.part`` left behind.
+With ``rotate_s`` the files are cut into parts of that much simulated time,
+each in its own folder ``part-000/``, ``part-001/``, ... (its own recording,
+trace and log; the recordings share the run's recording id, so the viewer opens
+them as one). So a run stopped, failed or killed keeps what it recorded: a
+killed process loses at most the last batch; :func:`load_trace` reads the
+chunks left behind.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 
 from cosim.contract.errors import OutputWriteError
+from cosim.record.trace_files import CURRENT, ChunkedTrace, iter_trace, load_trace  # noqa: F401 (the readers live there)
 from cosim.runtime.portcache import port_slots
 from cosim.runtime.wiring import Wiring
 from cosim.scenario.paths import distance_to_path
@@ -39,94 +44,162 @@ from cosim.scenario.schema import Scenario
 
 #: longest stretch of wall time, and of simulated time [s], not yet written out
 FLUSH_EVERY_S = 1.0
+#: the rows held in memory at most [bytes]: the ticks of one chunk of the trace
+CHUNK_BYTES = 16 * 2**20
+#: the name of a recording part's folder, by its number
+PART_DIR = "part-{:03d}"
+
+
+class TickTimes:
+    """The times of the ticks [s], ``tick * dt_s``, computed when sliced (no array of the run's length)."""
+
+    def __init__(self, dt_s: float):
+        self.dt_s = dt_s
+
+    def __getitem__(self, ticks: slice) -> np.ndarray:
+        if not isinstance(ticks, slice) or ticks.start is None or ticks.stop is None or ticks.step not in (None, 1):
+            raise TypeError("tick times are read as a slice start:stop of ticks")
+        return np.arange(ticks.start, ticks.stop) * self.dt_s
 
 
 class TraceRecorder:
-    """Keeps every component's outputs at every tick and writes ``trace.npz`` and the views' files."""
-    def __init__(self, scenario: Scenario, wiring: Wiring, out_dir: Path, path=None):
+    """``rotate_s``: simulated time [s] per recording part (None: one part, in ``out_dir`` itself)."""
+
+    def __init__(self, scenario: Scenario, wiring: Wiring, out_dir: Path, path=None, rotate_s: float | None = None):
         self.scenario, self.wiring, self.out_dir, self.path = scenario, wiring, Path(out_dir), path
-        n = scenario.n_steps
-        self.t_s = np.arange(n) * scenario.dt_s
-        #: per component, every output at every tick: (n, width) float64, the ports laid end to end
-        self.rows = {c: np.full((n, sum(int(np.prod(p.shape)) for p in ports)), np.nan)
-                     for c in wiring.order if (ports := wiring.outputs[c])}
-        #: every port's (n, *shape) view into its component's rows, by (component, port)
+        self.t_s = TickTimes(scenario.dt_s)
+        widths = {c: sum(int(np.prod(p.shape)) for p in ports) for c in wiring.order if (ports := wiring.outputs[c])}
+        #: ticks held in memory: one chunk, and at least one batch
+        self._batch_ticks = max(int(round(FLUSH_EVERY_S / scenario.dt_s)), 1)
+        self.capacity = max(CHUNK_BYTES // (8 * (1 + sum(widths.values()))), self._batch_ticks)
+        #: per component, its outputs at the ticks held: (capacity, width) float64, the ports laid end to end;
+        #: row ``tick - base`` holds tick ``tick``
+        self.rows = {c: np.full((self.capacity, w), np.nan) for c, w in widths.items()}
+        #: every port's (capacity, *shape) view into its component's rows, by (component, port)
         self.arrays = {key: view for c in self.rows for key, view in _port_views(c, wiring.outputs[c], self.rows[c])}
+        self.base = 0  # the first tick held
         self.ticks = 0  # ticks recorded
         self.written = 0  # ticks written to the log and the trace
-        self.drawn = 0  # ticks written to the recording
+        self.drawn = 0  # ticks written to the recording (and into the figures)
         self.closed = False
         self.files: dict[str, Path] = {}
-        self.tracking_error_m = np.full(n, np.nan)  # (n,) distance of truth to path [m], as far as drawn
+        self.parts: list[Path] = []  # the parts' folders, with rotate_s
         self.roles = scenario.record.ports()  # {role: "component.port" or None}
         truth = self.signal("truth", 0, 0)
         #: whether the run has a tracking error: a path, and a ``truth`` role recording positions
         self.tracks_path = path is not None and truth is not None and truth.shape[1:] == (3,)
         #: the layout's views the components add for what they log themselves
         self.views = [v for c in wiring.order for v in wiring.classes[c].recording_views(c)]
-        self._batch_ticks = max(int(round(FLUSH_EVERY_S / scenario.dt_s)), 1)
+        if rotate_s is not None and not rotate_s > 0:
+            raise ValueError(f"rotate_s={rotate_s}: a part must last > 0 s")
+        self.part_ticks = None if rotate_s is None else max(int(round(rotate_s / scenario.dt_s)), 1)
+        self.part_start = 0  # the first tick of the part under way
+        #: the next tick at which the chunk is full or a new part is due
+        self._cut = self.capacity if self.part_ticks is None else min(self.capacity, self.part_ticks)
         self._last_write = time.monotonic()
-        self._part = self._rrd = None
+        self._trace = self._rrd = None
         self._files: dict = {}  # the views' files, by key
-        self._file_ticks: dict = {}  # ticks written to each of them, by key
+        self._file_ticks: dict = {}  # ticks written to each of the files, by key
+        self._joining: list[threading.Thread] = []  # the parts' traces being joined into trace.npz
+        from cosim.record.figures import RunFigures
+
+        self.figures = RunFigures(self)
 
     def open(self) -> None:
         """Create the output files (headers only); called before the first tick."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self._open_part()
+
+    def _open_part(self) -> None:
         from cosim.record import rerun_log
         from cosim.record.views import registered_views
 
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        folder = self.out_dir
+        if self.part_ticks is not None:
+            folder = self.out_dir / PART_DIR.format(len(self.parts))
+            folder.mkdir(parents=True, exist_ok=True)
+            self.parts.append(folder)
+        self.part_dir = folder
         run_views = [view for view in registered_views().values() if view.applies(self)]
+        self._files = {}
         for view in run_views:
-            self._files.update(view.open_files(self, self.out_dir))
-        self.files.update({key: file.path for key, file in self._files.items()})
-        layout = [[f"{c}.{p}", list(a.shape[1:])] for (c, p), a in self.arrays.items()]
-        (self.out_dir / "trace.part.json").write_text(json.dumps({"dtype": "<f8", "columns": [["t_s", []], *layout]}))
-        self._part = open(self.out_dir / "trace.part", "wb")
-        self._rrd = rerun_log.RecordingWriter(self.out_dir / "recording.rrd", self, run_views, self.views)
-        self.files["recording"] = self.out_dir / "recording.rrd"
+            self._files.update(view.open_files(self, folder))
+        layout = [(f"{c}.{p}", a.shape[1:]) for (c, p), a in self.arrays.items()]
+        self._trace = ChunkedTrace(folder, layout, self.scenario.dt_s)
+        self._trace.open()
+        self._trace_start = self.written  # the first tick of the trace's chunk under way
+        self._rrd = rerun_log.RecordingWriter(folder / "recording.rrd", self, run_views, self.views)
+        if self.part_ticks is None:
+            self.files.update({key: file.path for key, file in self._files.items()})
+            self.files["recording"] = folder / "recording.rrd"
 
     def on_tick(self, tick: int, t: float, rows: dict[str, np.ndarray]) -> None:
         """``rows``: each component's outputs at ``tick`` (flat, the ports laid end to end); a
         component missing from it (its step failed) stays NaN."""
         if self.closed:
             return
+        if tick >= self._cut:  # one test a tick: the chunk is full, or a new part is due
+            if self.part_ticks is not None and tick - self.part_start >= self.part_ticks:
+                self._close_part()
+                self.part_start = tick
+                self._open_part()
+            else:
+                self._seal()
+            self._cut = self.base + self.capacity
+            if self.part_ticks is not None:
+                self._cut = min(self._cut, self.part_start + self.part_ticks)
+        i = tick - self.base
         for comp, row in rows.items():
-            self.rows[comp][tick] = row
+            self.rows[comp][i] = row
         self.ticks = tick + 1
         if time.monotonic() - self._last_write >= FLUSH_EVERY_S:
             self.write_out(recording=True)
         elif self.ticks - self.written >= self._batch_ticks:
             self.write_out(recording=False)
 
-    def signal(self, role: str, start: int = 0, stop: int | None = None) -> np.ndarray | None:
-        """The recorded array of a role of ``scenario.record`` (e.g. 'truth'), rows ``start:stop``
-        (default: up to the ticks run); None when the role is unbound or its port is not recorded."""
+    def signal(self, role: str, start: int | None = None, stop: int | None = None) -> np.ndarray | None:
+        """The recorded array of a role of ``scenario.record`` (e.g. 'truth'), ticks ``start:stop``
+        (default: the ticks held, from :attr:`base` up to the ticks run), shape (stop - start, *port
+        shape); None when the role is unbound or its port is not recorded. Only the ticks held can
+        be read: those not yet written out and drawn."""
         ref = self.roles.get(role)
         if not ref:
             return None
         comp, _, port = ref.partition(".")
         arr = self.arrays.get((comp, port))
-        return None if arr is None else arr[start: self.ticks if stop is None else stop]
+        if arr is None:
+            return None
+        start = self.base if start is None else start
+        stop = self.ticks if stop is None else stop
+        if stop <= start:  # no tick (e.g. a shape check): (0, *port shape)
+            return arr[:0]
+        if start < self.base:
+            raise IndexError(f"{role}: ticks {start}:{stop} asked, the recorder holds ticks from {self.base} "
+                             f"(it keeps the ticks not yet written out, at most {self.capacity})")
+        return arr[start - self.base: stop - self.base]
+
+    def _held(self, start: int, stop: int) -> dict[str, np.ndarray]:
+        """Every trace column at ticks ``start:stop`` (held), ``{name: (stop - start, *shape)}``."""
+        a, b = start - self.base, stop - self.base
+        return {"t_s": self.t_s[start:stop], **{f"{c}.{p}": arr[a:b] for (c, p), arr in self.arrays.items()}}
 
     def write_out(self, recording: bool = True) -> None:
         """Append the ticks recorded since the last call to the log and the trace
-        (and, with ``recording``, to the rerun recording)."""
-        if self._part is None:
+        (and, with ``recording``, to the rerun recording and the figures)."""
+        if self._trace is None:
             return
         start, stop = self.written, self.ticks
         if stop > start:
-            t_s = self.t_s[start:stop]
             for key, file in self._files.items():  # each from where it stands: a retry after a failed write
                 begin = self._file_ticks.get(key, start)  # appends no row twice
                 if stop > begin:
                     with _writing(file.path):
                         file.append(self, begin, stop)
                     self._file_ticks[key] = stop
-            table = np.hstack([t_s[:, None], *(rows[start:stop] for rows in self.rows.values())])
-            with _writing(self.out_dir / "trace.part"):
-                self._part.write(np.ascontiguousarray(table, dtype="<f8").tobytes())
-                self._part.flush()
+            a, b = start - self.base, stop - self.base
+            with _writing(self._trace.dir / CURRENT):
+                self._trace.append(np.hstack([self.t_s[start:stop][:, None],
+                                              *(rows[a:b] for rows in self.rows.values())]))
             self.written = stop
         if recording:
             self._last_write = time.monotonic()
@@ -134,10 +207,22 @@ class TraceRecorder:
             if stop > start:
                 error = None
                 if self.tracks_path:
-                    error = self.tracking_error_m[start:stop] = distance_to_path(
-                        self.path, self.signal("truth", start, stop), self.t_s[start:stop])
+                    error = distance_to_path(self.path, self.signal("truth", start, stop), self.t_s[start:stop])
+                self.figures.add(self, start, stop, error)
                 self._rrd.append(start, stop, error)
                 self.drawn = stop
+
+    def _seal(self) -> None:
+        """Write out every tick held, seal the trace's chunk, and start holding from the next tick."""
+        self.write_out(recording=True)
+        self._trace.seal(self._held(self._trace_start, self.ticks))
+        self._trace_start = self.ticks
+        self._drop_held()
+
+    def _drop_held(self) -> None:
+        self.base = self.ticks
+        for rows in self.rows.values():
+            rows.fill(np.nan)
 
     def security_event(self, text: str) -> None:
         """Log a dropped sample or reply (see :mod:`cosim.runtime.node`) in the recording's event log, at
@@ -145,58 +230,63 @@ class TraceRecorder:
         if self._rrd is not None and not self.closed:
             self._rrd.event(max(self.ticks - 1, 0) * self.scenario.dt_s, f"security: {text}", "WARN")
 
-    def finish(self, error: str | None, event: str | None = None) -> None:
-        """Write the rest and close the files; ``event`` (a fault or a stop) goes into the recording.
+    def _close_part(self, last: bool = False) -> None:
+        """Write out and close the files of the part under way; its trace.npz is made from its chunks
+        (in a thread while the run goes on, unless it is the ``last``). A file that cannot be written (a
+        full disk) keeps none of the others from being closed; the first failure is raised at the end."""
+        failures = []
+        try:
+            self.write_out(recording=True)
+        except OutputWriteError as exc:
+            failures.append(exc)
+        self._rrd.close()
+        for file in self._files.values():
+            try:
+                with _writing(file.path):
+                    file.close()
+            except OutputWriteError as exc:
+                failures.append(exc)
+        rest = {k: np.array(v) for k, v in self._held(self._trace_start, self.ticks).items()}
+        job = threading.Thread(target=self._trace.finish, args=(rest, self.part_dir / "trace.npz"),
+                               name="cosim-trace-join", daemon=False)
+        job.start()
+        self._joining = [j for j in self._joining if j.is_alive()] + [job]
+        self._drop_held()
+        if last:
+            for job in self._joining:
+                job.join()
+        if self.part_ticks is None:
+            self.files["trace"] = self.part_dir / "trace.npz"
+        if failures:
+            raise failures[0]
 
-        A file that cannot be written (a full disk) does not keep the others from being written and
-        closed; the first such failure is raised afterwards as an
-        :class:`~cosim.contract.errors.OutputWriteError`, and ``trace.part`` stays unless
-        ``trace.npz`` was written."""
+    def finish(self, error: str | None, event: str | None = None) -> None:
+        """Write the rest and close the files; ``event`` (a fault or a stop) goes into the recording."""
         if self.closed:
             return
         self.closed = True
-        if self._part is None:
+        if self._trace is None:
             self.open()
-        failures = []
+        failure = None
         try:
             self.write_out()
         except OutputWriteError as exc:
-            failures.append(exc)
+            failure = exc
         if event:
             self._rrd.event(self.ticks * self.scenario.dt_s, event, "ERROR" if error else "WARN")
-        self._rrd.close()
-        for path, close in [*((f.path, f.close) for f in self._files.values()),
-                            (self.out_dir / "trace.part", self._part.close)]:
-            try:
-                with _writing(path):
-                    close()
-            except OutputWriteError as exc:
-                failures.append(exc)
-        n = self.ticks
-        trace = {f"{c}.{p}": a[:n] for (c, p), a in self.arrays.items()}
         try:
-            with _writing(self.out_dir / "trace.npz"):
-                np.savez_compressed(self.out_dir / "trace.npz", t_s=self.t_s[:n], **trace)
-            self.files["trace"] = self.out_dir / "trace.npz"
-            (self.out_dir / "trace.part").unlink()
-            (self.out_dir / "trace.part.json").unlink()
+            self._close_part(last=True)
         except OutputWriteError as exc:
-            failures.append(exc)
-        if failures:
-            raise failures[0]
-        if not self.tracks_path:
-            self.tracking_error_m = None
-        else:
-            self.tracking_error_m = self.tracking_error_m[:n]
+            failure = failure or exc
+        if failure is not None:
+            raise failure
 
-
-@contextlib.contextmanager
-def _writing(path: Path):
-    """Turn an OSError while writing ``path`` into an :class:`OutputWriteError` naming it."""
-    try:
-        yield
-    except OSError as exc:
-        raise OutputWriteError(path, exc) from exc
+    def file_names(self) -> dict:
+        """summary.json's ``files``: each file's name (with ``rotate_s``, ``{"parts": [folder, ...]}``;
+        each part holds the same files)."""
+        if self.part_ticks is not None:
+            return {"parts": [p.name for p in self.parts]}
+        return {k: v.name for k, v in self.files.items()}
 
 
 def _port_views(comp: str, ports, rows: np.ndarray):
@@ -208,24 +298,10 @@ def _port_views(comp: str, ports, rows: np.ndarray):
         yield (comp, port.name), view
 
 
-def load_trace(run_dir: str | Path) -> dict[str, np.ndarray]:
-    """A run's trace: ``trace.npz``, or the ``trace.part`` of a run that was killed.
-
-    Returns ``{"t_s": (n,), "component.port": (n, *shape), ...}``.
-    """
-    run_dir = Path(run_dir)
-    if (run_dir / "trace.npz").is_file():
-        with np.load(run_dir / "trace.npz") as data:
-            return {k: data[k] for k in data.files}
-    part, layout = run_dir / "trace.part", run_dir / "trace.part.json"
-    if not (part.is_file() and layout.is_file()):
-        from cosim.contract.errors import UserError
-
-        raise UserError(f"run {run_dir}: no trace.npz (nor a trace.part of a run that was cut short)")
-    columns = json.loads(layout.read_text())["columns"]
-    widths = [int(np.prod(shape)) for _, shape in columns]
-    flat = np.frombuffer(part.read_bytes(), dtype="<f8")
-    rows = len(flat) // sum(widths)  # a row cut by the kill is dropped
-    table = flat[: rows * sum(widths)].reshape(rows, sum(widths))
-    edges = np.cumsum([0, *widths])
-    return {name: table[:, a:b].reshape(rows, *shape) for (name, shape), a, b in zip(columns, edges, edges[1:])}
+@contextlib.contextmanager
+def _writing(path: Path):
+    """Turn an OSError while writing ``path`` into an :class:`OutputWriteError` naming it."""
+    try:
+        yield
+    except OSError as exc:
+        raise OutputWriteError(path, exc) from exc

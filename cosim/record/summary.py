@@ -12,8 +12,15 @@ Run figures (all in mm or ms):
   at its capture time (the ``capture_time`` role; a camera without one is
   taken to deliver at capture), {median, p99}.
 
+They are computed as the run goes (:mod:`cosim.record.figures`): the means,
+spreads and maxima equal the whole run's up to rounding, the medians and
+p99 are within a relative 5e-4 of ``np.percentile``'s
+(:mod:`cosim.record.streaming`); :func:`trace_figures` computes them exactly
+from a whole trace.
+
 Components add figures of their own from their recorded outputs
-(:meth:`cosim.contract.component.Component.summary_figures`); a key another component
+(:meth:`cosim.contract.component.Component.summary_figures`, batch by batch through
+its ``summary_accumulator``); a key another component
 or the framework already uses is prefixed with the component's name.
 """
 
@@ -27,7 +34,13 @@ import numpy as np
 METRICS = ("tracking_error_mm", "estimation_error_mm", "prediction_error_mm", "solve_ms", "detection_error_mm")
 #: the other keys of a run's summary.json (see :mod:`cosim.runtime.runner`), which no component figure takes
 RUN_KEYS = ("scenario", "status", "error", "steps", "sim_time_s", "wall_time_s", "realtime_factor",
-            "total_wall_time_s", "files", "realtime")
+            "total_wall_time_s", "files", "realtime", "end")
+
+
+def run_figures(recorder) -> dict[str, Any]:
+    """The metrics of one run, computed as it went by its :class:`~cosim.record.recorder.TraceRecorder`
+    (see :mod:`cosim.record.figures`), then the components' own."""
+    return recorder.figures.figures(METRICS, RUN_KEYS)
 
 
 def _stats(values_mm: np.ndarray | None) -> dict | None:
@@ -39,38 +52,42 @@ def _stats(values_mm: np.ndarray | None) -> dict | None:
     return {"mean": float(np.mean(v)), "std": float(np.std(v)), "max": float(np.max(v))}
 
 
-def run_figures(recorder) -> dict[str, Any]:
-    """The metrics of one run from a :class:`~cosim.record.recorder.TraceRecorder`."""
-    out: dict[str, Any] = {k: None for k in METRICS}
-    if recorder.tracking_error_m is not None:
-        out["tracking_error_mm"] = _stats(recorder.tracking_error_m * 1e3)
-    truth, estimate = recorder.signal("truth"), recorder.signal("estimate")
-    if truth is not None and estimate is not None:
-        out["estimation_error_mm"] = _stats(np.linalg.norm(estimate - truth, axis=1) * 1e3)
-    innov = recorder.signal("prediction_error")
-    if innov is not None:
-        rows = innov[np.all(np.isfinite(innov), axis=1)] * 1e3
-        if len(rows):
-            mae = np.abs(rows).mean(axis=0)
-            out["prediction_error_mm"] = {"x": float(mae[0]), "y": float(mae[1]), "z": float(mae[2]),
-                                          "rmse": float(np.sqrt((rows**2).sum(axis=1).mean())), "frames": len(rows)}
-    solve = recorder.signal("solve_time")
-    if solve is not None:
-        out["solve_ms"] = _quantiles(solve * 1e3)
-    measured = recorder.signal("measured")
-    if measured is not None and truth is not None:
-        error_m = detection_error_m(measured, truth, recorder.t_s[: len(truth)], recorder.signal("capture_time"))
-        out["detection_error_mm"] = _quantiles(error_m * 1e3)
-    out.update(component_figures(recorder))
-    return out
-
-
 def _quantiles(values: np.ndarray) -> dict | None:
     """{median, p99} of the finite ``values``, None if there is none."""
     v = values[np.isfinite(values)]
     if not len(v):
         return None
     return {"median": float(np.median(v)), "p99": float(np.percentile(v, 99))}
+
+
+def trace_figures(trace: dict[str, np.ndarray], roles: dict[str, str | None], path=None) -> dict[str, Any]:
+    """The framework's metrics computed exactly from a whole trace (:func:`~cosim.record.trace_files.load_trace`),
+    ``roles`` as ``scenario.record.ports()``, ``path`` the run's path: the reference the figures
+    computed as a run goes are checked against (memory: the whole trace)."""
+    def get(role):
+        return trace.get(roles.get(role) or "")
+
+    out: dict[str, Any] = {k: None for k in METRICS}
+    truth, estimate, t_s = get("truth"), get("estimate"), trace["t_s"]
+    if path is not None and truth is not None and truth.shape[1:] == (3,):
+        from cosim.scenario.paths import distance_to_path
+
+        out["tracking_error_mm"] = _stats(distance_to_path(path, truth, t_s) * 1e3)
+    if truth is not None and estimate is not None:
+        out["estimation_error_mm"] = _stats(np.linalg.norm(estimate - truth, axis=1) * 1e3)
+    innov = get("prediction_error")
+    if innov is not None:
+        rows = innov[np.all(np.isfinite(innov), axis=1)] * 1e3
+        if len(rows):
+            mae = np.abs(rows).mean(axis=0)
+            out["prediction_error_mm"] = {"x": float(mae[0]), "y": float(mae[1]), "z": float(mae[2]),
+                                          "rmse": float(np.sqrt((rows**2).sum(axis=1).mean())), "frames": len(rows)}
+    if get("solve_time") is not None:
+        out["solve_ms"] = _quantiles(get("solve_time") * 1e3)
+    if get("measured") is not None and truth is not None:
+        error_m = detection_error_m(get("measured"), truth, t_s, get("capture_time"))
+        out["detection_error_mm"] = _quantiles(error_m * 1e3)
+    return out
 
 
 def detection_error_m(measured_m: np.ndarray, truth_m: np.ndarray, t_s: np.ndarray,
@@ -86,17 +103,6 @@ def detection_error_m(measured_m: np.ndarray, truth_m: np.ndarray, t_s: np.ndarr
     at = t_s if capture_time_s is None else np.where(np.isfinite(capture_time_s), capture_time_s, t_s)
     truth_at = np.stack([np.interp(at, t_s, truth_m[:, i]) for i in range(3)], axis=1)
     return np.linalg.norm(measured_m - truth_at, axis=1)
-
-
-def component_figures(recorder) -> dict[str, Any]:
-    """What each component adds to the summary from its recorded outputs (see the module doc)."""
-    wiring, n = recorder.wiring, recorder.ticks
-    out: dict[str, Any] = {}
-    for name in wiring.order:
-        outputs = {p.name: recorder.arrays[(name, p.name)][:n] for p in wiring.outputs[name]}
-        for key, value in wiring.classes[name].summary_figures(outputs).items():
-            out[f"{name}.{key}" if key in out or key in METRICS or key in RUN_KEYS else key] = value
-    return out
 
 
 #: the keys of a sweep row that are not labels: what the run gave, and where and by what it was made

@@ -20,7 +20,7 @@ import os
 import threading
 import time
 
-import numpy as np
+from cosim.record.streaming import Quantiles
 
 #: priority asked for under SCHED_FIFO (1-99; low: above every normal thread, below the kernel's own)
 FIFO_PRIORITY = 10
@@ -29,16 +29,18 @@ FIFO_PRIORITY = 10
 class Pacer:
     """Waits for each tick's slot; keeps lateness and misses.
 
-    ``n_ticks``: ticks the run will take (lateness is kept per tick, shape (n_ticks,));
-    ``stop``: set to end a wait at once; ``clock``: seconds, monotonic.
+    ``n_ticks``: ticks the run will take (None: until stopped); lateness is kept as a histogram
+    (:class:`~cosim.record.streaming.Quantiles`, relative error <= 5e-4), so memory does not grow
+    with the run; ``stop``: set to end a wait at once; ``clock``: seconds, monotonic.
     """
 
-    def __init__(self, dt_s: float, factor: float, n_ticks: int, stop: threading.Event,
+    def __init__(self, dt_s: float, factor: float, n_ticks: int | None, stop: threading.Event,
                  clock=time.perf_counter):
         if not factor > 0:
             raise ValueError(f"real-time factor must be > 0, got {factor}")
         self.factor, self.period_s, self.stop, self.clock = factor, dt_s / factor, stop, clock
-        self.lateness_s = np.zeros(n_ticks)
+        self.lateness_ms = Quantiles("tick lateness [ms]")
+        self._latest_s = 0.0
         self.ticks = 0
         self.missed = 0
         self.longest_miss_run = 0
@@ -68,25 +70,25 @@ class Pacer:
             target = self._t0 + self._slot * self.period_s
         if target > now and self.stop.wait(target - now):
             return False
-        if self.ticks < len(self.lateness_s):
-            self.lateness_s[self.ticks] = max(self.clock() - target, 0.0)
+        self._latest_s = max(self.clock() - target, 0.0)
+        self.lateness_ms.add_one(self._latest_s * 1e3)
         self.ticks += 1
         self._slot += 1
         return not self.stop.is_set()
 
     def latest_ms(self) -> float:
-        return float(self.lateness_s[self.ticks - 1] * 1e3) if self.ticks else 0.0
+        return self._latest_s * 1e3 if self.ticks else 0.0
 
     def summary(self) -> dict:
         """The ``realtime`` entry of ``summary.json``."""
-        late_ms = self.lateness_s[: self.ticks] * 1e3
-        pct = (lambda q: round(float(np.percentile(late_ms, q)), 3)) if self.ticks else (lambda q: None)
+        late = self.lateness_ms
+        pct = (lambda q: round(late.quantile(q / 100), 3)) if late.n else (lambda q: None)
         return {
             "factor": self.factor,
             "ticks": self.ticks,
             "missed": self.missed,
             "longest_miss_run": self.longest_miss_run,
             "lateness_ms": {"p50": pct(50), "p99": pct(99),
-                            "max": round(float(late_ms.max()), 3) if self.ticks else None},
+                            "max": round(late.max, 3) if late.n else None},
             "sched_fifo": self.sched_fifo,
         }

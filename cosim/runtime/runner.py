@@ -83,6 +83,8 @@ class RunRequest:
     #: open workers a sweep runs on instead of its own (several sweeps in a row: see
     #: :func:`cosim.scale.executors.workers`)
     workers: Any = None
+    #: cut the recording into parts of this much simulated time [s] (``part-000/``, ...); None: one
+    rotate_s: float | None = None
 
 
 @contextlib.contextmanager
@@ -118,6 +120,11 @@ def run(request: RunRequest) -> dict[str, Any]:
     from cosim.scenario.check import check_runs
 
     check_runs(scenario, request.scenario_file, request.overrides)
+    if scenario.sweep and (scenario.n_steps is None or None in scenario.sweep.get("duration_s", [])):
+        from cosim.contract.errors import UserError
+
+        raise UserError(f"{request.scenario_file}: a sweep runs its combinations one after another, so each "
+                        "needs a duration_s (null, run until stopped, is for a single run)")
     with stop_on_signals() as stop:
         if not scenario.sweep:
             return run_one(scenario, request, stop)
@@ -143,7 +150,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     from cosim.record.rerun_log import set_aside_parts
 
     set_aside_parts(out)  # an earlier run's parts are never merged into this run's recording
-    recorder = TraceRecorder(scenario, wiring, out, path)
+    recorder = TraceRecorder(scenario, wiring, out, path, request.rotate_s)
     recorder.open()
     realtime = request.realtime or scenario.realtime
     write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
@@ -212,8 +219,11 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     from cosim.record.rerun_log import merge_parts
 
     merge_parts(out)  # what components recorded themselves, now that their processes have ended
+    stopped = stop.event.is_set() and (scenario.n_steps is None or completed < scenario.n_steps)
     summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s if scheduler else 0.0, total_wall,
-                       error, stop.reason if stop.event.is_set() and completed < scenario.n_steps else None)
+                       error, stop.reason if stopped else None)
+    if scheduler and scheduler.input_ended and not error:
+        summary["end"] = f"input ended ({scheduler.input_ended})"
     if scheduler and scheduler.pacer:
         summary["realtime"] = scheduler.pacer.summary()
     if getattr(group, "security_events", None):  # samples and replies dropped as not the rightful publisher's
@@ -269,7 +279,7 @@ def _summary(scenario: Scenario, recorder: TraceRecorder, completed: int, wall_s
         "wall_time_s": wall_s,
         "realtime_factor": sim / wall_s if wall_s > 0 else None,
         "total_wall_time_s": total_wall_s,
-        "files": {k: v.name for k, v in recorder.files.items()},
+        "files": recorder.file_names(),
     }
 
 

@@ -25,6 +25,7 @@ ticks follow the wall clock, and nodes are granted one tick at a time.
 
 from __future__ import annotations
 
+import itertools
 import queue
 import sys
 import threading
@@ -35,7 +36,7 @@ from typing import Callable, Protocol
 import numpy as np
 import zenoh
 
-from cosim.contract.component import ComponentFault
+from cosim.contract.component import ComponentFault, InputEnded
 from cosim.contract.errors import OutputWriteError, UserError
 from cosim.runtime import bus
 from cosim.runtime.pacing import Pacer
@@ -363,8 +364,8 @@ class RemoteGroup:
             time.sleep(0.02)
         raise RunError(senders[0], "its initial outputs never reached their consumers")
 
-    def plan(self, n_steps: int, window: int) -> None:
-        """``window``: ticks the nodes may run ahead (1 under real-time pacing)."""
+    def plan(self, n_steps: int | None, window: int) -> None:
+        """``window``: ticks the nodes may run ahead (1 under real-time pacing); ``n_steps`` None: until stopped."""
         self._n_steps, self._granted, self._window = n_steps, 0, window
 
     def step(self, tick: int, t: float, due: list[str], progress: Progress) -> None:
@@ -376,8 +377,8 @@ class RemoteGroup:
         the result identical to strict lockstep.
         """
         progress.busy(*due)
-        if self._granted - tick <= self._window // 2 and self._granted < self._n_steps:
-            self._granted = min(tick + self._window, self._n_steps)
+        if self._granted - tick <= self._window // 2 and (self._n_steps is None or self._granted < self._n_steps):
+            self._granted = tick + self._window if self._n_steps is None else min(tick + self._window, self._n_steps)
             self._tick_pub.put(bus.encode_json({"until": self._granted}))
         self.gather(due, tick, None, progress)
 
@@ -454,6 +455,7 @@ class Scheduler:
         self._observed = [(c, wiring.periods[c]) for c in wiring.order if wiring.outputs[c]]
         self.progress = Progress()
         self.loop_wall_s = 0.0  # wall time of the ticks alone (set-up and writing excluded)
+        self.input_ended: str | None = None  # why a replayed input ended the run, if one did
         self._flushed: tuple = (None, 0.0)  # (occasion, time) of the watchdog's last flush
         self._stalled_at: float | None = None  # when this process last resumed after not running
         self._stall_s = 0.0  # for how long it had not run
@@ -489,7 +491,7 @@ class Scheduler:
                     obs.security_event(text)
         for obs in self.observers:
             try:
-                obs.finish(error, error or self.stop.reason)
+                obs.finish(error, error or self.stop.reason or self.input_ended)
             except OutputWriteError as exc:  # the first failure stands (a write that failed while stepping fails again)
                 if state.error is None:
                     state.error = WriteError(exc, "writing the outputs")
@@ -545,11 +547,12 @@ class Scheduler:
         periods, pacer = self.wiring.periods, self.pacer
         try:
             self.group.start(order, state, self._observed_missing)
-            self.group.plan(self.scenario.n_steps, 1 if pacer else WINDOW)
+            n_steps = self.scenario.n_steps  # None: until stopped
+            self.group.plan(n_steps, 1 if pacer else WINDOW)
             if pacer:
                 pacer.realtime_priority()
             wall0 = time.perf_counter()
-            for tick in range(self.scenario.n_steps):
+            for tick in (range(n_steps) if n_steps is not None else itertools.count()):
                 if self.stop_event.is_set() or (pacer and not pacer.wait()):
                     return
                 t = tick * dt
@@ -560,6 +563,9 @@ class Scheduler:
                 self.loop_wall_s = time.perf_counter() - wall0
                 if state.done:  # the watchdog gave up on us
                     return
+        except InputEnded as exc:  # a replayed input ran out: the run ends with the ticks before this one
+            self.input_ended = f"{state.pending[0] if state.pending else 'a component'}: {exc}"
+            state.tick -= 1
         except PortTimeout as exc:
             self._fail(RunError(exc.component, f"{exc.what} for tick {exc.stamp} never arrived"))
         except OutputWriteError as exc:  # an observer could not write (a full disk): stop, keep what was written

@@ -120,7 +120,7 @@ def connection_table(scenario: Scenario, wiring: Wiring) -> str:
                          str(port.shape), port.unit, str(edge.delay)))
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
     lines = [f"scenario {scenario.name}: {len(wiring.order)} components, dt {scenario.dt_s * 1e3:g} ms, "
-             f"{scenario.n_steps} steps"]
+             + (f"{scenario.n_steps} steps" if scenario.n_steps is not None else "until stopped")]
     for i, row in enumerate(rows):
         lines.append("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip())
         if i == 0:

@@ -128,7 +128,9 @@ class Scenario(_Strict):
 
     name: str = Field(description="a plain name (letters, digits, '.', '_', '-'): it names the run's folder")
     description: str = ""
-    duration_s: float = Field(gt=0)
+    duration_s: float | None = Field(gt=0, description=(
+        "simulated time to run [s]; null: run until stopped (Ctrl-C, SIGTERM, a fault or the end of "
+        "a replayed input)"))
     dt_s: float = Field(0.02, gt=0, le=1.0)
     seed: int = 0
     profile: str = Field("ideal", description=(
@@ -171,8 +173,9 @@ class Scenario(_Strict):
         return self
 
     @property
-    def n_steps(self) -> int:
-        return int(round(self.duration_s / self.dt_s))
+    def n_steps(self) -> int | None:
+        """Ticks to run; None for a run until stopped (``duration_s: null``)."""
+        return None if self.duration_s is None else int(round(self.duration_s / self.dt_s))
 
     @property
     def recording_id(self) -> str:

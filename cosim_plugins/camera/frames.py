@@ -209,6 +209,24 @@ class FrameCamera(Component):
         return {"detections": {"frames": int(np.isfinite(codes).sum()), "lost": int((codes == LOST).sum()),
                                "rejected": int((codes == REJECTED).sum())}}
 
+    @classmethod
+    def summary_accumulator(cls) -> DetectionCounts:
+        return DetectionCounts()
+
+
+class DetectionCounts:
+    """The ``detections`` figure counted batch by batch (the same counts as ``summary_figures``)."""
+
+    def __init__(self):
+        self.counts = {"frames": 0, "lost": 0, "rejected": 0}
+
+    def add(self, outputs: Mapping[str, np.ndarray]) -> None:
+        for key, value in FrameCamera.summary_figures(outputs)["detections"].items():
+            self.counts[key] += value
+
+    def figures(self) -> dict[str, Any]:
+        return {"detections": dict(self.counts)}
+
 
 class RenderedCamera(FrameCamera):
     """Frames rendered from the plant's true position and axis, then the same detection and triangulation."""

@@ -84,17 +84,6 @@ class Selection:
     start: Fit  # the reference the first round compared with
     stop: str  # "noise_floor" | "none_passes" | "max_effects" | "no_candidates"
     dropped: list = field(default_factory=list)  # [{"effect", "reduction", "t_stat"}] by the backward check
-    candidates: dict = field(default_factory=dict)  # round 1: {effect: Fit}
-
-    @property
-    def named(self) -> list:
-        """Effects named one by one, in the order chosen (not the look-alike groups)."""
-        return [s.effects[0] for s in self.steps if not s.is_group]
-
-    @property
-    def groups(self) -> list:
-        """Look-alike groups, each a list of effect names."""
-        return [list(s.effects) for s in self.steps if s.is_group]
 
     @property
     def chosen(self) -> list:
@@ -145,7 +134,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
         say(f"round {round_no}: chose {' ~ '.join(members)}: {current.error(key):.3f} -> {chosen.error(key):.3f} mm")
         current = chosen
         remaining = [e for e in remaining if e.name not in members]
-    selection = Selection(steps=steps, rounds=rounds, final=current, start=start, stop=stop, candidates=first[1])
+    selection = Selection(steps=steps, rounds=rounds, final=current, start=start, stop=stop)
     if len(steps) >= 2:
         _backward(fitter, selection, by_name, floor.get(key), key, say)
     return selection

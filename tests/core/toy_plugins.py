@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from cosim import Component, ComponentError, Port, hookimpl
+from cosim import Component, ComponentError, InputEnded, Port, hookimpl
 
 
 class KinematicPlant(Component):
@@ -38,7 +38,8 @@ class KinematicPlant(Component):
 
 
 class Faulty(Component):
-    """Passes position through; at ``fail_at_s`` raises, hangs, or ends its process (``mode``);
+    """Passes position through; at ``fail_at_s`` raises, hangs, ends its process, or says its
+    replayed input has ended (``mode``: raise, hang, exit, end);
     or (``close_fault``) steps well and sets a fault when closed; or (``setup``) fails its set-up.
     ``setup_s``: how long its set-up takes [s]."""
 
@@ -61,6 +62,8 @@ class Faulty(Component):
                 raise ComponentError("deliberate failure")
             if self.mode == "exit":
                 os._exit(3)
+            if self.mode == "end":
+                raise InputEnded("the recording replayed has no more rows")
             time.sleep(3600)
         return {"position": inputs["position"]}
 

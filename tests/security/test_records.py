@@ -3,6 +3,7 @@ recording part of another run is not merged; a write error stops the run with on
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from pathlib import Path
@@ -54,21 +55,31 @@ def test_a_sweep_removes_only_the_folders_it_made(tmp_path, capsys):
     assert (squatter / "notes.txt").read_text() == "mine"
 
 
-def test_a_write_error_stops_the_run_naming_the_file_and_keeps_what_was_written(tmp_path, capsys):
-    if not Path("/dev/full").exists():
-        pytest.skip("no /dev/full to stand in for a full disk")
+def test_a_write_error_stops_the_run_naming_the_file_and_keeps_what_was_written(tmp_path, capsys, monkeypatch):
+    """The trace's chunk file fills the disk after a few batches (as a full disk does: ENOSPC on write)."""
+    from cosim.record.trace_files import CHUNKS_DIR, CURRENT, ChunkedTrace
+
     out = tmp_path / "run"
-    out.mkdir()
-    os.symlink("/dev/full", out / "trace.part")  # every write there fails: No space left on device
+    written = ChunkedTrace.append
+    calls = {"n": 0}
+
+    def append(self, table):
+        calls["n"] += 1
+        if calls["n"] > 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        written(self, table)
+
+    monkeypatch.setattr(ChunkedTrace, "append", append)
     assert main(["run", str(TOY), "--out", str(out), "--set", "duration_s=4", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
+    chunk = out / CHUNKS_DIR / CURRENT
     assert len(err.splitlines()) == 1, err
-    assert err.startswith(f"cosim run: error: writing {out / 'trace.part'} failed: No space left on device "
+    assert err.startswith(f"cosim run: error: writing {chunk} failed: No space left on device "
                           "(the run stopped at t = "), err
     assert "while stepping; what was written before is kept" in err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "failed" and summary["phase"] == "stepping"
-    assert "trace.part failed: No space left on device" in summary["error"]
+    assert f"{CURRENT} failed: No space left on device" in summary["error"]
     rows = (out / "log.csv").read_text().splitlines()
     assert len(rows) > 1 and len(rows) - 1 == summary["steps"]  # the log kept every step the run took
 

@@ -22,6 +22,7 @@ os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 import cv2  # noqa: E402  (after the FFmpeg log level, which OpenCV reads when it first opens a video)
 import numpy as np  # noqa: E402
 
+from cosim.contract.component import InputEnded
 from cosim_plugins.camera.calibration import VIEWS
 from cosim_plugins.camera.sources.base import FramePair, FrameSource, FrameSourceError, size_of, to_grey
 
@@ -81,7 +82,8 @@ class _Capture:
             if self.frames < total:
                 raise FrameSourceError(f"{self.name} ({self.view}): frame {self.frames} of {total} cannot be "
                                        "decoded (corrupted)")
-            raise FrameSourceError(f"{self.name} ({self.view}): ended after {self.frames} frames")
+            # the recording replayed has run out: the run ends here (see cosim.contract.component.InputEnded)
+            raise InputEnded(f"{self.name} ({self.view}): ended after {self.frames} frames")
         if size_of(frame) != self.size:
             raise FrameSourceError(f"{self.name}: frame {self.frames} is {size_of(frame)}, the first was {self.size}")
         self.frames += 1
