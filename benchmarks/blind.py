@@ -30,7 +30,9 @@ it finishes; at the end one JSON object is printed:
   express it; those are counted under ``time_varying``);
 * ``multi``: ``cases``; ``all_named`` (fraction whose verdict names every
   hidden library effect), ``extra_named`` (cases naming a library effect not
-  hidden); ``by_kind``: the same for two library effects (``library``) and a
+  hidden); ``all_named_detectable`` the same over the ``detectable`` cases
+  (each hidden library effect's true form alone lowers the error by >= 10 %);
+  ``by_kind``: the same for two library effects (``library``) and a
   library and an outside one (``outside``). Each hidden effect with a true
   form is refitted alone: ``true_reductions`` in the records;
 * ``lookalike``: ``cases``; ``wrong_named`` (cases naming an effect not
@@ -244,6 +246,10 @@ def summarise(records: list[dict]) -> dict:
     def all_named(r):  # every hidden library effect named
         return set(r["hidden_library"]) <= set(r["named_effects"])
 
+    def multi_detectable(r):  # every hidden library effect's true form alone lowers the error by >= 10 %
+        true = r.get("true_reductions") or {}
+        return all((true.get(e) or 0.0) >= DETECTABLE for e in r["hidden_library"])
+
     def extra_named(r):  # a library effect named that is not hidden
         return any(e in blind_sim.LIBRARY and e not in r["effects"] for e in r["named_effects"])
 
@@ -283,7 +289,9 @@ def summarise(records: list[dict]) -> dict:
                     "time_varying": len(out) - len(out_form),
                     "time_varying_named": sum(1 for r in out if r["true_reduction"] is None and r["named"])},
         "multi": {"cases": len(multi), "all_named": frac(multi, all_named),
-                  "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind},
+                  "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind,
+                  "detectable": sum(1 for r in multi if multi_detectable(r)),
+                  "all_named_detectable": frac([r for r in multi if multi_detectable(r)], all_named)},
         "lookalike": {"cases": len(look), "wrong_named": sum(1 for r in look if wrong_named(r)),
                       "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
                       "declared": sum(1 for r in look if r["declared"]),

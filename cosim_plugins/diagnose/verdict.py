@@ -119,8 +119,11 @@ def verdict(result: dict, key: str) -> dict:
         return {**out, "status": "discovered", "explanation": prefix + text.strip()}
     if steps:
         if floor is not None and left > (1 + AT_FLOOR) * floor:
+            found = result.get("discovered")
+            more = ("; --discover fits a sparse combination of force terms to what is left" if not found else
+                    f"; discovery: {found['explanation']}" if found["status"] != "found" else "")
             text += (f" The remaining error is still {left / floor:.1f}x the noise floor: no other listed effect "
-                     "passes the tests given these." + _discovered_text(result, key))
+                     f"passes the tests given these{more}.")
         elif floor is not None:
             text += " What remains is at the noise floor."
         if named:
