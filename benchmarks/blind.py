@@ -32,6 +32,8 @@ it finishes; at the end one JSON object is printed:
   hidden library effect), ``extra_named`` (cases naming a library effect not
   hidden); ``all_named_detectable`` the same over the ``detectable`` cases
   (each hidden library effect's true form alone lowers the error by >= 10 %);
+  ``visible_named``: fraction naming every hidden library effect that its true
+  form alone shows (>= 10 %);
   ``by_kind``: the same for two library effects (``library``) and a
   library and an outside one (``outside``). Each hidden effect with a true
   form is refitted alone: ``true_reductions`` in the records;
@@ -246,6 +248,10 @@ def summarise(records: list[dict]) -> dict:
     def all_named(r):  # every hidden library effect named
         return set(r["hidden_library"]) <= set(r["named_effects"])
 
+    def visible_named(r):  # every hidden library effect that its true form alone shows (>= 10 %) is named
+        true = r.get("true_reductions") or {}
+        return {e for e in r["hidden_library"] if (true.get(e) or 0.0) >= DETECTABLE} <= set(r["named_effects"])
+
     def multi_detectable(r):  # every hidden library effect's true form alone lowers the error by >= 10 %
         true = r.get("true_reductions") or {}
         return all((true.get(e) or 0.0) >= DETECTABLE for e in r["hidden_library"])
@@ -291,7 +297,8 @@ def summarise(records: list[dict]) -> dict:
         "multi": {"cases": len(multi), "all_named": frac(multi, all_named),
                   "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind,
                   "detectable": sum(1 for r in multi if multi_detectable(r)),
-                  "all_named_detectable": frac([r for r in multi if multi_detectable(r)], all_named)},
+                  "all_named_detectable": frac([r for r in multi if multi_detectable(r)], all_named),
+                  "visible_named": frac(multi, visible_named)},
         "lookalike": {"cases": len(look), "wrong_named": sum(1 for r in look if wrong_named(r)),
                       "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
                       "declared": sum(1 for r in look if r["declared"]),

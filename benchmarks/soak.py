@@ -23,7 +23,9 @@ import tempfile
 import time
 from pathlib import Path
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
+from cosim_plugins.resources import SCENARIOS_DIR
+
+SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
 
 
 def child(hours: float, processes: bool, out: Path, rotate_h: float | None) -> None:

@@ -9,11 +9,15 @@ from __future__ import annotations
 import numpy as np
 
 from cosim import hookimpl
+from cosim.contract.params import Param
 from cosim_plugins.controllers.pi import PIController
 
 
 class NaNController(PIController):
     """The PI controller, except that from ``nan_at_s`` on it outputs ``value`` (NaN by default)."""
+
+    params_spec = {**PIController.params_spec, "nan_at_s": Param(1.0, "time of the first bad command [s]"),
+                   "value": Param("nan", "the bad command's every component [rad/s]: a number, nan or inf")}
 
     def setup(self, params, rng):
         params = dict(params)

@@ -154,24 +154,31 @@ def test_a_latency_reads_the_path_before_each_window(synthetic):
     assert np.mean(np.linalg.norm(ev["err"][ev["valid"]], axis=1)) > 10 * max(err.mean(), 1e-4)
 
 
-def test_verdict_says_when_the_runner_up_explains_the_error_about_as_well():
+def test_verdict_names_a_look_alike_group_not_a_member():
+    """A step the logs cannot tell from its rival is named as the group; the same step alone is named."""
     from cosim_plugins.diagnose.verdict import verdict
 
-    def result(t_between):
+    def result(group):
+        rival = {"sensor_latency": {"t_stat": 1.2, "t_horizons": 0.8, "differ_mm": 0.05, "adds": 0.01}}
+        step = {"effects": ["actuation_lag", "sensor_latency"] if group else ["actuation_lag"], "group": group,
+                "rollout_before_mm": 1.0, "rollout_mm": 0.64, "reduction": 0.36, "t_stat": 6.0,
+                "params": {"actuation_lag.tau": {"value": 0.05, "std": 0.01, "unit": "s"}},
+                "group_evidence": rival if group else {}}
         entry = {"effect": "actuation_lag", "reduction": 0.36, "t_stat": 6.0, "rollout_mm": {"1.0": 0.64},
-                 "params": {"actuation_lag.tau": {"value": 0.05, "std": 0.01, "unit": "s"}},
-                 "runner_up": {"effect": "sensor_latency", "reduction": 0.31, "t_stat": t_between}}
-        second = {"effect": "sensor_latency", "reduction": 0.31, "t_stat": 5.0, "rollout_mm": {"1.0": 0.69},
-                  "params": {}}
+                 "params": step["params"]}
         return {"reference": None, "baseline": {"rollout_mm": {"1.0": 1.0}}, "noise": {"floor_mm": {"1.0": 0.3}},
-                "ranking": [entry, second], "localisation": {"clues": []}}
+                "ranking": [entry], "localisation": {"clues": []},
+                "stepwise": {"steps": [step], "dropped": [], "joint": {"effects": ["actuation_lag"],
+                                                                      "rollout_mm": {"1.0": 0.64},
+                                                                      "reduction": {"1.0": 0.36}}}}
 
-    close = verdict(result(1.2), "1.0")
-    assert close["effect"] == "actuation_lag"
-    assert "cannot tell actuation_lag from sensor_latency" in close["explanation"]
-    assert "t = 1.2 < 3" in close["explanation"]
-    apart = verdict(result(4.5), "1.0")
-    assert apart["effect"] == "actuation_lag" and "cannot tell" not in apart["explanation"]
+    tie = verdict(result(True), "1.0")
+    assert tie["effect"] is None and tie["effects"] == []
+    assert tie["lookalikes"] == [["actuation_lag", "sensor_latency"]]
+    assert "None of them is named" in tie["explanation"] and "t = 1.2 at 1.0 s" in tie["explanation"]
+    named = verdict(result(False), "1.0")
+    assert named["effect"] == "actuation_lag" and named["effects"] == ["actuation_lag"] and not named["lookalikes"]
+    assert "actuation_lag explains the error" in named["explanation"]
 
 
 def test_a_diverging_model_shows_a_huge_error_not_nan(synthetic):

@@ -104,7 +104,7 @@ def test_custom_term_and_unregistered_term_on_load(tmp_path):
     model.set_params({"push.fx": 0.0})
     assert np.all(moved[:, 3] > model.predict(x, u, 0.02)[:, 3])
     model.save(tmp_path / "m.npz")
-    with pytest.raises(UserError, match="effects \\['push'\\] that are not registered"):
+    with pytest.raises(UserError, match="the model uses effect 'push', which is not registered"):
         load_model(tmp_path / "m.npz")
     with pytest.raises(ValueError, match="unknown physical parameters"):
         model.set_params({"nope": 1.0})

@@ -20,9 +20,10 @@ from cosim.runtime.bus import TlsFiles
 from cosim.runtime.runner import RunRequest, run
 from cosim.runtime.wiring import build_wiring
 from cosim.scenario.schema import load_scenario
+from cosim_plugins.resources import SCENARIOS_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
-SCENARIO = ROOT / "scenarios" / "racetrack.yaml"
+SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
 SHORT = ["duration_s=4"]  # paced at real time: the forger has 4 s of stepping to act in
 FORGED_HZ = 55.5555  # a drive frequency the controller never commands
 
