@@ -65,7 +65,46 @@ class Faulty(Component):
         return {"position": inputs["position"]}
 
 
+class Summer(Component):
+    """A discrete integrator for loop tests: each step adds its input to its output, y_k = y_(k-1) + u_k.
+
+    ``y0``: its initial output. Time plays no part: one step, one addition.
+    """
+
+    inputs = (Port("u", (1,), "1"),)
+    outputs = (Port("y", (1,), "1"),)
+
+    def setup(self, params, rng):
+        self.y = np.array([float(params.get("y0", 0.0))])
+
+    def initial_outputs(self):
+        return {"y": self.y.copy()}
+
+    def step(self, t, inputs):
+        self.y = self.y + inputs["u"]
+        return {"y": self.y.copy()}
+
+
+class Gain(Component):
+    """A proportional law for loop tests: u_k = gain (ref - y_k); initial output ``u0``."""
+
+    inputs = (Port("y", (1,), "1"),)
+    outputs = (Port("u", (1,), "1"),)
+
+    def setup(self, params, rng):
+        self.gain, self.ref = float(params.get("gain", 0.5)), float(params.get("ref", 1.0))
+        self.u0 = float(params.get("u0", 0.0))
+
+    def initial_outputs(self):
+        return {"u": np.array([self.u0])}
+
+    def step(self, t, inputs):
+        return {"u": self.gain * (self.ref - inputs["y"])}
+
+
 @hookimpl
 def cosim_register_components(register):
     register("test.kinematic", KinematicPlant)
     register("test.faulty", Faulty)
+    register("test.summer", Summer)
+    register("test.gain", Gain)

@@ -61,3 +61,72 @@ def test_bad_command_files_are_named_with_the_line(tmp_path, capsys, header, row
     assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv")]) == 2
     err = capsys.readouterr().err
     assert str(cmd) in err and message in err, err
+
+
+# ---------------------------------------------------------------- units and period, against hand-computed values
+
+
+def _convert(tmp_path, capsys, positions_rows, *args, header="t_s,x,y,z"):
+    """Commands at 0, 0.05, 0.1 s (1, 2, 3 Hz about z); the given detections; ``cosim convert`` with ``args``."""
+    cmd = _write(tmp_path / "cmd.csv", "t_s,axis_x,axis_y,axis_z,freq_hz",
+                 [[0.0, 0, 0, 1, 1.0], [0.05, 0, 0, 1, 2.0], [0.1, 0, 0, 1, 3.0]])
+    pos = _write(tmp_path / "pos.csv", header, positions_rows)
+    out = tmp_path / "log.csv"
+    code = main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out), *args])
+    return code, out, capsys.readouterr()
+
+
+@pytest.mark.parametrize("args, written_m", [
+    (["--unit", "mm"], (0.1, 0.2, -0.3)),  # 100 mm = 0.1 m
+    (["--unit", "m"], (100.0, 200.0, -300.0)),  # but no swimmer is 100 m away: see the next test
+    (["--unit", "px", "--pixel-mm", "0.19"], (0.019, 0.038, -0.057)),  # 100 px x 0.19 mm = 19 mm
+    (["--unit", "px", "--pixel-mm", "2.5"], (0.25, 0.5, -0.75)),
+], ids=["mm", "m", "px 0.19", "px 2.5"])
+def test_position_units_give_metres_in_the_raw_log(tmp_path, capsys, args, written_m):
+    code, out, _ = _convert(tmp_path, capsys, [[0.0, 100.0, 200.0, -300.0]], *args)
+    assert code == 0
+    row = out.read_text().splitlines()[1].split(",")
+    np.testing.assert_allclose([float(v) for v in row[4:7]], written_m, rtol=1e-9)
+
+
+def test_pixels_read_back_in_mm(tmp_path, capsys):
+    """40 px of 0.19 mm: 7.6 mm in the cleaned log, on every axis's own scale."""
+    rows = [[0.02 * i, 40.0 + i, -20.0, 10.0 * i] for i in range(6)]
+    code, out, _ = _convert(tmp_path, capsys, rows, "--unit", "px", "--pixel-mm", "0.19")
+    assert code == 0
+    log = read_log(out)
+    expected = np.array([[0.19 * (40.0 + i), 0.19 * -20.0, 0.19 * 10.0 * i] for i in range(6)])
+    np.testing.assert_allclose(log.p_mm, expected, rtol=1e-9)
+
+
+def test_the_period_sets_the_grid_and_the_held_commands(tmp_path, capsys):
+    """--dt 0.03 over commands at 0, 0.05, 0.1 s: rows at 0, 30, 60, 90 ms holding 1, 1, 2, 2 Hz;
+    a detection at 31 ms is within half a period (15 ms) of the 30 ms row only."""
+    code, out, printed = _convert(tmp_path, capsys, [[0.031, 1.0, 2.0, 3.0]], "--dt", "0.03")
+    assert code == 0
+    log = read_log(out)
+    np.testing.assert_allclose(log.t_s, [0.0, 0.03, 0.06, 0.09], atol=1e-12)
+    np.testing.assert_allclose(log.omega_hz[:, 2], [1.0, 1.0, 2.0, 2.0], rtol=1e-8)  # as written: 10 digits
+    np.testing.assert_allclose(log.omega_hz[:, :2], 0.0, atol=1e-12)
+    assert np.isnan(log.p_mm[[0, 2, 3]]).all()
+    np.testing.assert_allclose(log.p_mm[1], [1.0, 2.0, 3.0], rtol=1e-9)
+    assert "4 rows of 30 ms" in printed.out
+
+
+def test_the_default_period_is_20_ms(tmp_path, capsys):
+    code, out, printed = _convert(tmp_path, capsys, [[0.0, 1.0, 2.0, 3.0]])
+    assert code == 0 and read_log(out).n == 6  # 0..100 ms
+    assert "6 rows of 20 ms" in printed.out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--unit", "px"], "positions in px need --pixel-mm"),
+    (["--unit", "px", "--pixel-mm", "0"], "positions in px need --pixel-mm"),
+    (["--unit", "px", "--pixel-mm", "-0.19"], "positions in px need --pixel-mm"),
+    (["--dt", "0"], "--dt 0: the control period must be positive"),
+    (["--dt", "-0.02"], "--dt -0.02: the control period must be positive"),
+])
+def test_bad_units_and_periods_are_named(tmp_path, capsys, args, message):
+    code, out, printed = _convert(tmp_path, capsys, [[0.0, 1.0, 2.0, 3.0]], *args)
+    assert code == 2 and message in printed.err, printed.err
+    assert not out.exists()

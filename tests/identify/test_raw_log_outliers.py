@@ -1,0 +1,125 @@
+"""The raw log's outlier cleaning against hand-computed cases and an independent reference.
+
+The rule (``cosim_plugins.raw_log``): a position is an outlier when it lies
+further than ``max(outlier_mm, 6 x 1.4826 x MAD of the residuals)`` from the
+per-axis median of the 5 valid samples centred on it (gaps skipped; fewer at
+the ends). The reference here is that sentence as a plain loop over rows
+with ``statistics.median``.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+
+import numpy as np
+import pytest
+
+from cosim_plugins.raw_log import OUTLIER_HALF_WINDOW, OUTLIER_MM, read_log, write_log
+
+
+def reference_outliers(p_mm: np.ndarray, threshold_mm: float = OUTLIER_MM, h: int = OUTLIER_HALF_WINDOW):
+    """(n,) bool: the documented rule, row by row (p_mm (n, 3) [mm], NaN rows are gaps)."""
+    valid = [i for i in range(len(p_mm)) if all(math.isfinite(v) for v in p_mm[i])]
+    out = np.zeros(len(p_mm), dtype=bool)
+    if len(valid) < 2 * h + 1:
+        return out
+    residual = []
+    for j, i in enumerate(valid):
+        hood = valid[max(0, j - h): j + h + 1]
+        centre = [statistics.median(p_mm[k][a] for k in hood) for a in range(3)]
+        residual.append(math.dist(p_mm[i], centre))
+    mid = statistics.median(residual)
+    mad = statistics.median(abs(r - mid) for r in residual)
+    limit = max(threshold_mm, 6 * 1.4826 * mad)
+    for i, r in zip(valid, residual):
+        out[i] = r > limit
+    return out
+
+
+def _log(tmp_path, p_mm: np.ndarray, name="log.csv", **kw):
+    """Write positions (n, 3) [mm] as a raw log (20 ms rows) and read it back cleaned."""
+    path = tmp_path / name
+    write_log(path, 20.0 * np.arange(len(p_mm)), np.ones((len(p_mm), 3)), p_mm * 1e-3)
+    return read_log(path, **kw)
+
+
+def _line(n: int) -> np.ndarray:
+    """A swimmer moving 0.1 mm per row along x, distinct values (no repeats): (n, 3) [mm]."""
+    i = np.arange(n, dtype=float)
+    return np.column_stack([0.1 * i, 5.0 + 0.01 * i, -3.0 + 0.02 * i])
+
+
+def test_several_isolated_outliers_and_only_they_are_removed(tmp_path):
+    p = _line(40)
+    p[5, 0] += 30.0  # a large reflection: a mean of its neighbourhood would move 6 mm and drag its neighbours out
+    p[17, 1] -= 4.0
+    p[29, 2] += 8.0
+    log = _log(tmp_path, p)
+    assert np.flatnonzero(log.outlier).tolist() == [5, 17, 29]
+    np.testing.assert_array_equal(log.outlier, reference_outliers(p))
+
+
+def test_two_and_three_adjacent_outliers_are_all_found(tmp_path):
+    """A cluster of two within 5 samples still leaves the median on the clean ones."""
+    p = _line(40)
+    p[[10, 11], 0] += 12.0  # two in a row, the same way
+    p[25, 1] += 6.0
+    p[26, 1] -= 6.0  # two in a row, opposite ways
+    log = _log(tmp_path, p)
+    assert np.flatnonzero(log.outlier).tolist() == [10, 11, 25, 26]
+    np.testing.assert_array_equal(log.outlier, reference_outliers(p))
+
+
+def test_the_neighbourhood_skips_gaps(tmp_path):
+    """Gaps either side of an outlier: its neighbours are the nearest valid samples, not the NaN rows."""
+    p = _line(30)
+    p[[13, 14, 16, 17]] = np.nan
+    p[15, 2] += 5.0
+    log = _log(tmp_path, p)
+    assert np.flatnonzero(log.outlier).tolist() == [15]
+    assert np.flatnonzero(log.gap).tolist() == [13, 14, 16, 17]
+
+
+def test_outliers_at_the_ends_are_found(tmp_path):
+    p = _line(20)
+    p[0, 0] += 9.0
+    p[19, 1] -= 9.0
+    log = _log(tmp_path, p)
+    assert np.flatnonzero(log.outlier).tolist() == [0, 19]
+
+
+def test_a_jump_just_within_the_threshold_stays(tmp_path):
+    """3 mm is the default threshold: 2.9 mm away from the neighbourhood's median stays, 3.1 mm goes."""
+    p = np.zeros((20, 3))
+    p[:, 0] = 0.001 * np.arange(20)  # 1 um a row: residuals of clean rows are about 0
+    p[6, 1] = 2.9
+    p[14, 1] = 3.1
+    log = _log(tmp_path, p)
+    assert np.flatnonzero(log.outlier).tolist() == [14]
+
+
+def test_a_noisy_log_raises_the_threshold_to_six_robust_sigmas(tmp_path):
+    """Noise of 1 mm per axis: a 4 mm jump is within 6 robust sigmas of the residuals, a 25 mm one is not."""
+    rng = np.random.default_rng(7)
+    p = _line(200) + rng.normal(0.0, 1.0, (200, 3))
+    p[50, 0] += 25.0
+    expected = reference_outliers(p)
+    log = _log(tmp_path, p)
+    np.testing.assert_array_equal(log.outlier, expected)
+    assert log.outlier[50] and expected.sum() <= 2  # the jump, and at most a noise tail
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_random_logs_with_clusters_match_the_reference(tmp_path, seed):
+    rng = np.random.default_rng(seed)
+    n = 150
+    p = np.cumsum(rng.normal(0.0, 0.05, (n, 3)), axis=0) + rng.normal(0.0, 0.02, (n, 3))
+    p[rng.random(n) < 0.05] = np.nan  # gaps
+    for start in rng.choice(n - 3, 6, replace=False):  # clusters of 1 to 2 outliers
+        width = int(rng.integers(1, 3))
+        p[start:start + width, int(rng.integers(0, 3))] += rng.choice([-1, 1]) * rng.uniform(4.0, 20.0)
+    log = _log(tmp_path, p, name=f"log{seed}.csv", outlier_mm=3.0)
+    p_read = np.where(log.gap[:, None], np.nan, p)
+    np.testing.assert_array_equal(log.outlier, reference_outliers(p_read))
+    assert log.outlier.sum() >= 4
