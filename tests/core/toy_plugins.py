@@ -16,7 +16,11 @@ from cosim import Component, ComponentError, Port, hookimpl
 
 
 class KinematicPlant(Component):
-    """Swims along the commanded rotation axis at 2.5 mm/s per Hz (no inertia)."""
+    """Swims along the commanded rotation axis at 2.5 mm/s per Hz (no inertia).
+
+    ``tick_file``: if given, a file to which each step appends its tick number (a line, flushed), so a
+    test can tell how far the run got without a clock.
+    """
 
     inputs = (Port("omega", (3,), "rad/s"),)
     outputs = (Port("position", (3,), "m"),)
@@ -25,11 +29,19 @@ class KinematicPlant(Component):
         self.dt = params["dt"]
         self.p = np.array(params.get("p0", [-0.015, -0.040, 0.0]), dtype=float)
         self.t = 0.0
+        self.ticks = open(params["tick_file"], "a") if params.get("tick_file") else None
+
+    def close(self):
+        if self.ticks is not None:
+            self.ticks.close()
 
     def initial_outputs(self):
         return {"position": self.p.copy()}
 
     def step(self, t, inputs):
+        if self.ticks is not None:
+            self.ticks.write(f"{int(round(t / self.dt))}\n")
+            self.ticks.flush()
         if t > self.t:
             w = inputs["omega"]
             self.p = self.p + 2.5e-3 * w / (2 * np.pi) * (t - self.t)
