@@ -212,3 +212,67 @@ def test_watchdog_on_the_wall_clock_from_both_sides(make_driver, ticks):
         clock.t += elapsed
         fault = driver.check_watchdog()
         assert (fault is not None and fault.name == "watchdog") == trips, elapsed
+
+
+# ---------------------------------------------------------------- the interlocks' parts, at their edges
+
+
+def test_limit_scale_is_one_when_nothing_binds_even_for_tiny_amplitudes():
+    from cosim_plugins.coil_driver.interlocks import Limits, limit_scale
+
+    assert limit_scale([0.0] * 6, [0.0] * 6, 10.0, DT, Limits(40.0, 3.0, 2000.0)) == 1.0  # no field at all
+    small = [0.3, 0.1, 0.2, 0.0, 0.05, 0.3]  # V, all within a 0.5 V limit
+    assert limit_scale(small, small, 10.0, DT, Limits(0.5, 100.0, 1e9)) == 1.0
+    assert limit_scale(small, small, 10.0, DT, Limits(0.15, 100.0, 1e9)) == pytest.approx(0.5)
+
+
+def test_a_one_tick_thermal_window_forgets_the_previous_tick():
+    """window_s = dt: only the current tick counts; 1 J per tick against 1.5 J never trips."""
+    budget = ThermalBudget(r_ohm=2.0, dt_s=0.5, window_s=0.5, budget_j=0.75)  # 1 A: 0.5 J per tick
+    assert budget.window_ticks == 1
+    assert all(budget.add([1.0, 0, 0, 0, 0, 0]) is None for _ in range(5))
+    two = ThermalBudget(r_ohm=2.0, dt_s=0.5, window_s=1.0, budget_j=0.75)  # two ticks: the second trips
+    assert two.add([1.0, 0, 0, 0, 0, 0]) is None and two.add([1.0, 0, 0, 0, 0, 0]) is not None
+
+
+def test_the_thermal_fault_names_the_hottest_coil():
+    budget = ThermalBudget(r_ohm=2.0, dt_s=1.0, window_s=1.0, budget_j=0.5)
+    fault = budget.add([2.0, 1.5, 0, 0, 1.0, 0])  # +x 4 J, -x 2.25 J, +z 1 J: all over 0.5 J
+    assert fault.message == "coil +x dissipated 4.0 J in the last 1 s (budget 0.5 J)"
+
+
+def test_the_watchdog_at_its_exact_limit_and_its_message():
+    from cosim_plugins.coil_driver.interlocks import Watchdog
+
+    dog = Watchdog(timeout_s=0.1, ticks=5)
+    assert dog.check(50.0) is None  # never kicked: nothing to time
+    dog.kick(0.0)
+    assert dog.check(0.1 + 1e-9) is None  # exactly the limit (and its nanosecond of slack)
+    fault = dog.check(2.0)
+    assert fault.name == "watchdog"
+    assert fault.message == ("no new command for 5 ticks (2000 ms since the last, limit 100 ms): "
+                             "outputs ramped to zero")
+
+
+def test_a_fault_reported_by_the_hardware_trips_the_driver(make_driver):
+    from cosim_plugins.coil_driver.interlocks import BackendFault, Fault
+
+    class FailingReference(RecordingReference):
+        def deliver(self, tick, amp_v, phase_rad, freq_hz):
+            raise BackendFault(Fault("daq_error", "task stopped: buffer underflow"))
+
+    error = BackendFault(Fault("daq_error", "task stopped: buffer underflow"))
+    assert str(error) == "daq_error: task stopped: buffer underflow" and error.fault.name == "daq_error"
+    driver = make_driver(rig=Rig(FailingReference([])), watchdog_clock="sim")
+    out = driver.step(0.0, {"omega": spin(8.0)})
+    assert driver.fault == "daq_error: task stopped: buffer underflow"
+    assert np.all(out["coil_voltage_amp"] == 0)
+
+
+def test_an_unknown_fault_name_is_refused_naming_the_known_ones():
+    from cosim_plugins.coil_driver.interlocks import FAULT_NAMES, Fault
+
+    with pytest.raises(ValueError) as err:
+        Fault("melted", "coil +x")
+    assert str(err.value) == f"unknown fault 'melted'; known: {', '.join(FAULT_NAMES)}"
+    assert "unsafe_command, thermal_budget, watchdog" in str(err.value)
