@@ -50,7 +50,7 @@ COIL_TESTS = ("tests/coil_driver/test_coil_interlocks.py", "tests/coil_driver/te
               "tests/coil_driver/test_coil_properties.py", "tests/controllers/test_controllers_nan_safety.py",
               "-k", "not stops_the_run and not recorded_trace and not readme and not cosim_validate")
 EKF_TESTS = ("tests/estimators/test_kf_filter.py", "tests/estimators/test_ekf_jacobian.py", "tests/estimators/test_ekf_parts.py",
-             "tests/estimators/test_kf_noise.py")
+             "tests/estimators/test_kf_noise.py", "tests/estimators/test_kf_noise_parts.py")
 TARGETS = (
     Target("interlocks", "cosim_plugins/coil_driver/interlocks.py", COIL_TESTS),
     Target("inverse", "cosim_plugins/coil_driver/inverse.py", COIL_TESTS),
