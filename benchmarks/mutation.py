@@ -59,7 +59,7 @@ TARGETS = (
     Target("kalman", "cosim_plugins/estimators/kalman.py",
            ("tests/estimators/test_kf_component.py", "tests/estimators/test_kf_plant.py")),
     Target("wiring", "cosim/runtime/wiring.py",
-           ("tests/core/test_delays.py", "tests/core/test_scenario.py", "-k", "not process_per")),
+           ("tests/core/test_wiring.py", "tests/core/test_delays.py", "-k", "not process_per")),
     Target("stepper", "cosim/runtime/stepper.py", ("tests/core/test_delays.py", "-k", "not process_per")),
     Target("portcache", "cosim/runtime/portcache.py", ("tests/core/test_delays.py", "-k", "not process_per")),
     Target("raw_log", "cosim_plugins/raw_log.py",
