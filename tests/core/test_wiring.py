@@ -77,3 +77,41 @@ def test_a_port_of_another_shape_or_unit_is_refused_and_unused_outputs_are_liste
     scenario, w = wiring_of("components.probe={plugin: test.summer, inputs: {u: gain.u}}")
     assert w.unused_outputs() == ["probe.y"]
     assert "unused outputs: probe.y" in connection_table(scenario, w)
+
+
+def test_more_wiring_details():
+    """No edges: no delay; every class kept; a unit mismatch alone is refused too."""
+    from cosim.runtime.wiring import Wiring
+
+    assert Wiring({}, {}, {}, [], [], {}).max_delay() == 0
+    _, w = wiring_of()
+    assert sorted(w.classes) == ["gain", "summer"] and w.classes["gain"].__name__ == "Gain"
+    with pytest.raises(WiringError) as err:
+        wiring_of("components.volts={plugin: test.volt_gain, inputs: {y: summer.y}}",
+                  "components.summer.inputs.u.from=volts.u")
+    assert str(err.value) == "components.summer.inputs.u: volts.u is (1,) [V] but summer.u expects (1,) [1]"
+
+
+def test_wiring_errors_list_every_port_and_name_bad_parameters_with_the_scenarios_period():
+    racetrack = Path(__file__).parents[2] / "scenarios" / "racetrack.yaml"
+    scenario = load_scenario(racetrack, ["components.coil_driver.inputs.omega=plant.spin"])
+    with pytest.raises(WiringError) as err:
+        build_wiring(scenario)
+    outputs = ", ".join(p.name for p in build_wiring(load_scenario(racetrack)).outputs["plant"])
+    assert str(err.value) == f"components.coil_driver.inputs.omega: plant has no output 'spin' (outputs: {outputs})"
+    assert outputs.count(", ") >= 2
+    daq = ["dt_s=0.01", "components.coil_driver.params.backend=daq", "components.coil_driver.params.daq_rate_hz=150"]
+    with pytest.raises(WiringError) as err:
+        build_wiring(load_scenario(racetrack, daq))
+    assert str(err.value).startswith("components.coil_driver.params (coil_driver.inverse): daq_rate_hz=150 gives "
+                                     "1.5 samples per 0.01 s tick")
+
+
+def test_the_connection_table_lines_exactly():
+    scenario, w = wiring_of()
+    lines = connection_table(scenario, w).splitlines()
+    assert lines[1:5] == ["signal    from      shape  unit  delay",
+                          "--------  --------  -----  ----  -----",
+                          "summer.u  gain.u    (1,)   1     1",
+                          "gain.y    summer.y  (1,)   1     0"]
+    assert lines[5] == "" and lines[6].startswith("step order: ")

@@ -114,9 +114,16 @@ class Gain(Component):
         return {"u": self.gain * (self.ref - inputs["y"])}
 
 
+class VoltGain(Gain):
+    """The gain law with its output in volts (a port of another unit, for wiring tests)."""
+
+    outputs = (Port("u", (1,), "V"),)
+
+
 @hookimpl
 def cosim_register_components(register):
     register("test.kinematic", KinematicPlant)
     register("test.faulty", Faulty)
     register("test.summer", Summer)
     register("test.gain", Gain)
+    register("test.volt_gain", VoltGain)
