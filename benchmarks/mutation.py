@@ -93,6 +93,7 @@ def prepare(target: Target) -> Path:
         f"only_mutate = [{json.dumps(target.path)}]",
         f"pytest_add_cli_args_test_selection = {json.dumps(list(target.tests))}",
         'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
+        "timeout_multiplier = 5.0",  # a mutant whose tests take 5x their clean time (+1 s) hangs: caught
         'also_copy = ["scenarios", "examples", "fmus", "README.md", "build"]',
         "",
     ])
