@@ -110,13 +110,15 @@ def results(work: Path) -> dict[str, str]:
     return {m.group(1): m.group(2).strip() for line in out.splitlines() if (m := RESULT_LINE.match(line))}
 
 
-def mutate(target: Target, children: int, log) -> dict:
+def mutate(target: Target, children: int) -> dict:
     """Run mutmut on ``target``; its figures: mutants, killed, score, and the survivors' names."""
     work = prepare(target)
-    proc = subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(children)], cwd=work,
-                          stdout=log, stderr=subprocess.STDOUT)
+    log_path = WORK / f"{target.name}.log"
+    with open(log_path, "w") as log:
+        proc = subprocess.run([sys.executable, "-m", "mutmut", "run", "--max-children", str(children)], cwd=work,
+                              stdout=log, stderr=subprocess.STDOUT)
     if proc.returncode != 0:
-        raise RuntimeError(f"mutmut run for {target.path} exited {proc.returncode}; see {log.name}")
+        raise RuntimeError(f"mutmut run for {target.path} exited {proc.returncode}; see {log_path}")
     status = results(work)
     killed = sum(s in CAUGHT for s in status.values())
     return {"mutants": len(status), "killed": killed, "score": round(killed / len(status), 3) if status else None,
@@ -133,11 +135,10 @@ def main(argv=None) -> int:
     WORK.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     modules = {}
-    with open(WORK / "mutmut.log", "w") as log:
-        for target in targets:
-            modules[target.path] = mutate(target, args.children, log)
-            print(f"{target.path}: {modules[target.path]['killed']} of {modules[target.path]['mutants']} killed",
-                  file=sys.stderr, flush=True)
+    for target in targets:  # mutmut's own output: build/mutation/NAME.log
+        modules[target.path] = mutate(target, args.children)
+        print(f"{target.path}: {modules[target.path]['killed']} of {modules[target.path]['mutants']} killed",
+              file=sys.stderr, flush=True)
     print(json.dumps({"modules": modules, "seconds": round(time.perf_counter() - t0, 1)}, indent=1))
     return 0
 
