@@ -93,7 +93,8 @@ def prepare(target: Target) -> Path:
         f"only_mutate = [{json.dumps(target.path)}]",
         f"pytest_add_cli_args_test_selection = {json.dumps(list(target.tests))}",
         'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
-        "timeout_multiplier = 5.0",  # a mutant whose tests take 5x their clean time (+1 s) hangs: caught
+        # a mutant whose tests take 10x their clean time plus 10 s hangs (caught); generous, as the machine is shared
+        "timeout_multiplier = 10.0", "timeout_constant = 10.0",
         'also_copy = ["scenarios", "examples", "fmus", "README.md", "build"]',
         "",
     ])
