@@ -252,6 +252,9 @@ def test_the_watchdog_at_its_exact_limit_and_its_message():
     assert fault.name == "watchdog"
     assert fault.message == ("no new command for 5 ticks (2000 ms since the last, limit 100 ms): "
                              "outputs ramped to zero")
+    slow = Watchdog(timeout_s=2.0, ticks=100)
+    slow.kick(0.0)
+    assert "(3000 ms since the last, limit 2000 ms)" in slow.check(3.0).message
 
 
 def test_a_fault_reported_by_the_hardware_trips_the_driver(make_driver):
