@@ -53,19 +53,19 @@ EKF_TESTS = ("tests/estimators/test_kf_filter.py", "tests/estimators/test_ekf_ja
              "tests/estimators/test_kf_noise.py", "tests/estimators/test_kf_noise_parts.py")
 # the loop in one process, delays 0 to 3 on each edge once (each run starts a zenoh session: a second)
 DELAY_TESTS = ("tests/core/test_delays.py", "-k", "reference or one_process and (1-0 or 2-1 or 3-2 or 1-3)")
-TARGETS = (
+TARGETS = (  # cheap and most dangerous first: a run cut short still has their figures
     Target("interlocks", "cosim_plugins/coil_driver/interlocks.py", COIL_TESTS),
-    Target("inverse", "cosim_plugins/coil_driver/inverse.py", COIL_TESTS),
+    Target("wiring", "cosim/runtime/wiring.py", ("tests/core/test_wiring.py",)),
     Target("ekf", "cosim_plugins/estimators/ekf.py", EKF_TESTS),
     Target("noise", "cosim_plugins/estimators/noise.py", EKF_TESTS),
-    Target("kalman", "cosim_plugins/estimators/kalman.py",
-           ("tests/estimators/test_kf_component.py", "tests/estimators/test_kf_plant.py")),
-    Target("wiring", "cosim/runtime/wiring.py", ("tests/core/test_wiring.py",)),
     Target("stepper", "cosim/runtime/stepper.py", DELAY_TESTS),
     Target("portcache", "cosim/runtime/portcache.py", DELAY_TESTS),
     Target("raw_log", "cosim_plugins/raw_log.py",
            ("tests/identify/test_identify_data.py", "tests/identify/test_raw_log_outliers.py")),
     Target("convert", "cosim_plugins/identify/convert.py", ("tests/identify/test_convert.py",)),
+    Target("inverse", "cosim_plugins/coil_driver/inverse.py", COIL_TESTS),
+    Target("kalman", "cosim_plugins/estimators/kalman.py",
+           ("tests/estimators/test_kf_component.py", "tests/estimators/test_kf_plant.py")),
 )
 
 #: mutmut's statuses that count as caught (a failing test, or one that no longer finishes).
