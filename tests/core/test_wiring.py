@@ -115,3 +115,14 @@ def test_the_connection_table_lines_exactly():
                           "summer.u  gain.u    (1,)   1     1",
                           "gain.y    summer.y  (1,)   1     0"]
     assert lines[5] == "" and lines[6].startswith("step order: ")
+
+
+def test_messages_list_several_ports_comma_separated():
+    racetrack = Path(__file__).parents[2] / "scenarios" / "racetrack.yaml"
+    with pytest.raises(WiringError) as err:
+        build_wiring(load_scenario(racetrack, ["components.controller.inputs={speed: estimator.velocity}"]))
+    assert str(err.value).startswith("components.controller.inputs.speed: controller.pi has no input 'speed' "
+                                     "(inputs: position, velocity")
+    with pytest.raises(WiringError) as err:
+        build_wiring(load_scenario(racetrack, ["components.controller.inputs={}"]))
+    assert str(err.value) == "components.controller.inputs: not wired: position, velocity"
