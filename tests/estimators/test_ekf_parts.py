@@ -228,3 +228,55 @@ def test_restore_returns_to_the_snapshot_exactly():
     ekf.x[0] = 99.0  # the snapshot is a copy
     ekf.restore(snap)
     assert ekf.x[0] == x[0]
+
+
+@pytest.mark.parametrize("drift", [False, True], ids=["6 states", "9 states"])
+def test_between_refreshes_the_mean_goes_through_the_model(drift):
+    """With the Jacobian held (relinearize_steps 3) each prediction is still the model's own."""
+    from cosim_plugins.estimators.noise import drift_decay
+    from cosim_plugins.models.physical import PhysicalModel
+
+    model = PhysicalModel.from_params({}, dt_s=DT)
+    q = np.concatenate([Q6, [0.5] * 3]) if drift else Q6
+    p_init = np.concatenate([P_INIT, [25.0] * 3]) if drift else P_INIT
+    phi = drift_decay(DT, 2.0) if drift else None
+    ekf = MultiStepEKF(model, DT, q, R, p_init, phi=phi, relinearize_steps=3)
+    ekf.start(np.array([3.0, -12.0, 5.0]))
+    ekf.x[3:6] = [4.0, -2.5, 1.5]
+    u = np.array([6.0, -3.0, 2.0])
+    for _ in range(4):
+        before = ekf.x.copy()
+        ekf.predict(u)
+        expected = model.predict(before[:6], u, DT)
+        if drift:
+            expected[:3] += DT * before[6:]
+        np.testing.assert_allclose(ekf.x[:6], expected, rtol=1e-12, atol=1e-12)
+
+
+def test_the_constant_velocity_fallback_with_a_drift_state():
+    model = Scripted()
+    model.next = [math.nan] * 6
+    x0 = np.array([1.0, -2.0, 3.0, 10.0, -20.0, 30.0, 0.5, 0.25, 0.0])
+    ekf = MultiStepEKF(model, DT, np.concatenate([Q6, [0.5] * 3]), R, np.concatenate([P_INIT, [25.0] * 3]),
+                       phi=0.9, relinearize_steps=1000)
+    ekf.start(x0[:3])
+    ekf.x[:] = x0
+    ekf._F, ekf._since = np.eye(9), 0
+    ekf.predict(np.zeros(3))
+    expected = np.concatenate([x0[:3] + DT * x0[3:6] + DT * x0[6:], x0[3:6], 0.9 * x0[6:]])
+    np.testing.assert_allclose(ekf.x, expected, rtol=1e-15)
+
+
+def test_a_prediction_on_the_tank_wall_is_kept():
+    model = Scripted()
+    model.next = [75.0, -75.0, 0.0, 1.0, 1.0, 1.0]
+    ekf = _started(model, np.zeros(6), tank=75.0, relinearize_steps=1000)
+    ekf._F, ekf._since = np.eye(6), 0
+    ekf.predict(np.zeros(3))
+    np.testing.assert_array_equal(ekf.x, model.next)
+
+
+def test_integer_initial_variances_still_give_the_cameras_variance_on_the_position():
+    ekf = MultiStepEKF(linear_plugin.LinearSwimmer(), DT, Q6, R, [1, 1, 1, 400, 400, 400])
+    ekf.start(np.zeros(3))
+    np.testing.assert_array_equal(np.diag(ekf.P), np.concatenate([R, [400.0] * 3]))
