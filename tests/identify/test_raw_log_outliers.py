@@ -123,3 +123,61 @@ def test_random_logs_with_clusters_match_the_reference(tmp_path, seed):
     p_read = np.where(log.gap[:, None], np.nan, p)
     np.testing.assert_array_equal(log.outlier, reference_outliers(p_read))
     assert log.outlier.sum() >= 4
+
+
+def _limit(p_mm: np.ndarray) -> float:
+    """The rule's threshold [mm] for these positions: max(3 mm, 6 robust sigmas of the residuals)."""
+    valid = [i for i in range(len(p_mm)) if all(math.isfinite(v) for v in p_mm[i])]
+    residual = []
+    for j, i in enumerate(valid):
+        hood = valid[max(0, j - 2): j + 3]
+        centre = [statistics.median(p_mm[k][a] for k in hood) for a in range(3)]
+        residual.append(math.dist(p_mm[i], centre))
+    mid = statistics.median(residual)
+    return max(OUTLIER_MM, 6 * 1.4826 * statistics.median(abs(r - mid) for r in residual))
+
+
+@pytest.mark.parametrize("factor, flagged", [(1.15, True), (0.85, False)])
+def test_a_jump_just_above_or_below_six_robust_sigmas(tmp_path, factor, flagged):
+    rng = np.random.default_rng(11)
+    p = _line(300) + rng.normal(0.0, 1.5, (300, 3))
+    near = np.sort(p[[148, 149, 151, 152]], axis=0)  # the four neighbours, sorted per axis
+    p[150] = (near[1] + near[2]) / 2  # in the middle on every axis: the neighbourhood's median
+    limit = _limit(p)
+    for _ in range(3):  # residual = x - the neighbours' third x: factor x the threshold it leads to
+        p[150, 0] = near[2, 0] + factor * limit
+        limit = _limit(p)
+    assert limit > OUTLIER_MM + 1  # the noise sets the threshold here, not the 3 mm floor
+    log = _log(tmp_path, p)
+    assert log.outlier[150] == flagged
+    np.testing.assert_array_equal(log.outlier, reference_outliers(p))
+
+
+@pytest.mark.parametrize("rows, flagged", [(4, []), (5, [2]), (6, [2])])
+def test_the_outlier_test_needs_five_valid_samples(tmp_path, rows, flagged):
+    p = _line(rows)
+    p[2, 0] += 20.0
+    assert np.flatnonzero(_log(tmp_path, p).outlier).tolist() == flagged
+
+
+def test_read_logs_reads_each_with_the_threshold_given(tmp_path):
+    from cosim.contract.errors import UserError
+    from cosim_plugins.raw_log import read_logs
+
+    p = _line(30)
+    p[10, 0] += 4.0  # beyond the 3 mm default, within 5 mm
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    for path in (a, b):
+        write_log(path, 20.0 * np.arange(30), np.ones((30, 3)), p * 1e-3)
+    logs = read_logs([a, b])
+    assert [log.path for log in logs] == [str(a), str(b)] and all(log.outlier[10] for log in logs)
+    assert not any(log.outlier.any() for log in read_logs([a, b], outlier_mm=5.0))
+    with pytest.raises(UserError) as err:
+        read_logs([])
+    assert str(err.value) == "no log files given"
+
+
+def test_the_writer_never_writes_minus_zero(tmp_path):
+    path = tmp_path / "z.csv"
+    write_log(path, [0.0, 20.0, 40.0], -np.zeros((3, 3)), -np.zeros((3, 3)))
+    assert "-0" not in path.read_text()
