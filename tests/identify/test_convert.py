@@ -130,3 +130,54 @@ def test_bad_units_and_periods_are_named(tmp_path, capsys, args, message):
     code, out, printed = _convert(tmp_path, capsys, [[0.0, 1.0, 2.0, 3.0]], *args)
     assert code == 2 and message in printed.err, printed.err
     assert not out.exists()
+
+
+def _files(tmp_path, cmd_rows, pos_rows, cmd_header="t_s,omega_x,omega_y,omega_z", pos_header="t_s,x,y,z"):
+    return (_write(tmp_path / "c.csv", cmd_header, cmd_rows), _write(tmp_path / "p.csv", pos_header, pos_rows))
+
+
+def test_a_recording_that_starts_late_gives_a_log_from_zero(tmp_path, capsys):
+    """Commands from t = 100 s: the log's time starts at 0 and spans the commands (100..100.1 s: 6 rows)."""
+    cmd, pos = _files(tmp_path, [[100.0, 0, 0, 6.0], [100.06, 0, 0, 12.0], [100.1, 0, 0, 18.0]],
+                      [[100.04, 1.0, 2.0, 3.0]])
+    out = tmp_path / "log.csv"
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out)]) == 0
+    log = read_log(out)
+    np.testing.assert_allclose(log.t_s, [0.0, 0.02, 0.04, 0.06, 0.08, 0.1], atol=1e-12)
+    np.testing.assert_allclose(log.omega_hz[:, 2] * 2 * np.pi, [6.0, 6.0, 6.0, 12.0, 12.0, 18.0], rtol=1e-8)
+    np.testing.assert_allclose(log.p_mm[2], [1.0, 2.0, 3.0], rtol=1e-9)
+
+
+def test_a_command_just_after_a_row_is_not_yet_held(tmp_path, capsys):
+    cmd, pos = _files(tmp_path, [[0.0, 0, 0, 6.0], [0.04 + 1e-8, 0, 0, 12.0], [0.1, 0, 0, 18.0]],
+                      [[0.0, 1.0, 2.0, 3.0]])
+    out = tmp_path / "log.csv"
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out)]) == 0
+    np.testing.assert_allclose(read_log(out).omega_hz[:4, 2] * 2 * np.pi, [6.0, 6.0, 6.0, 12.0], rtol=1e-8)
+
+
+def test_of_two_detections_equally_near_the_earlier_is_taken_and_half_a_period_is_near(tmp_path, capsys):
+    """dt = 0.25 s (exact in binary), detections at 0.125 and 0.375 s: each is exactly half a period from
+    two rows."""
+    cmd, pos = _files(tmp_path, [[0.0, 0, 0, 6.0], [0.5, 0, 0, 6.0]],
+                      [[0.125, 1.0, 0.0, 0.0], [0.375, 2.0, 0.0, 0.0]])
+    out = tmp_path / "log.csv"
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out), "--dt", "0.25"]) == 0
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]  # as written (read_log would
+    p_x_mm = [float(r[4]) * 1e3 for r in rows]  # drop the repeated row as a lost detection)
+    assert p_x_mm == pytest.approx([1.0, 1.0, 2.0])  # 0 s: exactly half a period away, kept; 0.25 s: a tie,
+    # the earlier detection; 0.5 s: the later one
+
+
+@pytest.mark.parametrize("which, header, rows, message", [
+    ("positions", "t_s,x,y,z", [[0.0, 1, 2, 3], [np.nan, 1, 2, 3], [np.nan, 1, 2, 3]],
+     "line 3: empty or non-numeric time"),
+    ("positions", "t_s,x,y", [[0.0, 1, 2]], "positions need columns x,y,z (header: t_s,x,y)"),
+    ("positions", "time,x,y,z", [[0.0, 1, 2, 3]], "no time column: name it t_s or t_ms (header: time,x,y,z)"),
+])
+def test_bad_position_files_are_named_with_the_line(tmp_path, capsys, which, header, rows, message):
+    cmd, pos = _files(tmp_path, [[0.0, 0, 0, 6.0], [0.1, 0, 0, 6.0]], rows, pos_header=header)
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert f"{pos}: " in err or f"{pos} line" in err, err
+    assert message in err, err
