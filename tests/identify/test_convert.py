@@ -181,3 +181,15 @@ def test_bad_position_files_are_named_with_the_line(tmp_path, capsys, which, hea
     err = capsys.readouterr().err
     assert f"{pos}: " in err or f"{pos} line" in err, err
     assert message in err, err
+
+
+def test_the_summary_counts_rows_measured_detections_and_those_outside(tmp_path, capsys):
+    """Commands over 1..1.1 s (t0 = 1 s); detections at 0.5 s and 1.2 s lie outside [0.99, 1.11] s, the one
+    at 0.995 s and 1.04 s are inside and each gives a row its position."""
+    cmd, pos = _files(tmp_path, [[1.0, 0, 0, 6.0], [1.05, 0, 0, 6.0], [1.1, 0, 0, 6.0]],
+                      [[0.5, 1, 0, 0], [0.995, 2, 0, 0], [1.04, 3, 0, 0], [1.2, 4, 0, 0]])
+    out = tmp_path / "sub" / "dir" / "log.csv"  # folders made as needed
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.strip() == (f"wrote {out}: 6 rows of 20 ms (0.1 s), 2 with a position from 4 detections; "
+                               "2 detections lie outside the commands' time span and were left out")
