@@ -181,3 +181,37 @@ def test_the_writer_never_writes_minus_zero(tmp_path):
     path = tmp_path / "z.csv"
     write_log(path, [0.0, 20.0, 40.0], -np.zeros((3, 3)), -np.zeros((3, 3)))
     assert "-0" not in path.read_text()
+
+
+def _raw(tmp_path, rows, name="edge.csv"):
+    path = tmp_path / name
+    path.write_text("t_ms,omega_x,omega_y,omega_z,p_x,p_y,p_z\n" + "\n".join(",".join(r) for r in rows) + "\n")
+    return path
+
+
+def _rows(t_ms, x_m=None):
+    return [[f"{t:g}", "6.28", "0", "0", f"{(x_m[i] if x_m is not None else 0.001 * i):g}", "0.002", "0.003"]
+            for i, t in enumerate(t_ms)]
+
+
+def test_the_edges_of_the_readers_checks(tmp_path):
+    from cosim.contract.errors import UserError
+
+    one_ms = read_log(_raw(tmp_path, _rows(range(10)), "ms.csv"))  # 1 ms steps: still milliseconds
+    assert one_ms.n == 10
+    metre = read_log(_raw(tmp_path, _rows(range(0, 200, 20), [1.0 - 0.0001 * i for i in range(10)]), "m.csv"))
+    assert metre.p_mm[0, 0] == pytest.approx(1000.0)  # |p| = 1 m exactly is metres
+    rows = _rows(range(0, 200, 20))
+    rows[3][0] = ""
+    with pytest.raises(UserError) as err:
+        read_log(_raw(tmp_path, rows, "t.csv"))
+    assert str(err.value).endswith("line 5: missing or non-finite time")
+    rows = _rows([0, 20, 20.5, 40, 60, 50, 80])  # a half-millisecond step first, then one backwards
+    with pytest.raises(UserError) as err:
+        read_log(_raw(tmp_path, rows, "back.csv"))
+    assert str(err.value).endswith("line 7: time is not strictly increasing")
+
+
+def test_the_quality_reports_the_duration_to_the_millisecond(tmp_path):
+    log = read_log(_raw(tmp_path, _rows([1000, 1020, 1040, 1060, 1234.5678]), "q.csv"))
+    assert log.quality()["duration_s"] == 0.235
