@@ -63,7 +63,8 @@ TARGETS = (  # cheap and most dangerous first: a run cut short still has their f
     Target("raw_log", "cosim_plugins/raw_log.py",
            ("tests/identify/test_identify_data.py", "tests/identify/test_raw_log_outliers.py")),
     Target("convert", "cosim_plugins/identify/convert.py", ("tests/identify/test_convert.py",)),
-    Target("inverse", "cosim_plugins/coil_driver/inverse.py", COIL_TESTS),
+    Target("inverse", "cosim_plugins/coil_driver/inverse.py",
+           ("tests/coil_driver/test_coil_visa.py", "tests/coil_driver/test_coil_daq.py", *COIL_TESTS)),
     Target("kalman", "cosim_plugins/estimators/kalman.py",
            ("tests/estimators/test_kf_component.py", "tests/estimators/test_kf_plant.py")),
 )

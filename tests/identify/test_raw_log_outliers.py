@@ -215,3 +215,15 @@ def test_the_edges_of_the_readers_checks(tmp_path):
 def test_the_quality_reports_the_duration_to_the_millisecond(tmp_path):
     log = read_log(_raw(tmp_path, _rows([1000, 1020, 1040, 1060, 1234.5678]), "q.csv"))
     assert log.quality()["duration_s"] == 0.235
+
+
+def test_a_row_only_the_line_parser_reads_keeps_every_field_after_an_empty_one(tmp_path):
+    """``1_000`` is a number to Python, not to numpy's fast reader: the line-by-line parser reads the
+    file, and a row's fields after an empty one are still read."""
+    rows = _rows(range(0, 200, 20))
+    rows[4][0] = "8_0"  # 80 ms, written with a digit separator
+    rows[6][2] = ""  # omega_y missing: the fields after it are still read
+    log = read_log(_raw(tmp_path, rows, "slow.csv"))
+    assert log.t_s[4] == pytest.approx(0.08) and not log.gap.any()
+    assert np.isnan(log.omega_hz[6, 1]) and log.omega_hz[6, 2] == 0.0
+    np.testing.assert_allclose(log.p_mm[6], [6.0, 2.0, 3.0], rtol=1e-12)
