@@ -32,7 +32,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "build" / "mutation"
 #: What a private copy holds: the packages (mutmut copies them into mutants/), the tests and what they read.
-COPIED = ("cosim", "cosim_plugins", "tests", "scenarios", "examples", "fmus", "pyproject.toml", "README.md")
+COPIED = ("cosim", "cosim_plugins", "tests", "examples", "pyproject.toml", "README.md")
 #: Files copied if present (the plant FMU the scenario tests run).
 OPTIONAL = ("build/swimmer_plant.fmu",)
 
@@ -99,7 +99,7 @@ def prepare(target: Target) -> Path:
         'pytest_add_cli_args = ["-p", "no:cacheprovider"]',
         # a mutant whose tests take 10x their clean time plus 10 s hangs (caught); generous, as the machine is shared
         "timeout_multiplier = 10.0", "timeout_constant = 10.0",
-        'also_copy = ["scenarios", "examples", "fmus", "README.md", "build"]',
+        'also_copy = ["examples", "README.md", "build"]',
         "",
     ])
     pyproject = work / "pyproject.toml"

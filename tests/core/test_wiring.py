@@ -9,6 +9,7 @@ import pytest
 
 from cosim.runtime.wiring import Edge, WiringError, build_wiring, connection_table
 from cosim.scenario.schema import load_scenario
+from cosim_plugins.resources import SCENARIOS_DIR
 
 LOOP = Path(__file__).parent / "data" / "loop.yaml"
 
@@ -93,7 +94,7 @@ def test_more_wiring_details():
 
 
 def test_wiring_errors_list_every_port_and_name_bad_parameters_with_the_scenarios_period():
-    racetrack = Path(__file__).parents[2] / "scenarios" / "racetrack.yaml"
+    racetrack = SCENARIOS_DIR / "racetrack.yaml"
     scenario = load_scenario(racetrack, ["components.coil_driver.inputs.omega=plant.spin"])
     with pytest.raises(WiringError) as err:
         build_wiring(scenario)
@@ -118,7 +119,7 @@ def test_the_connection_table_lines_exactly():
 
 
 def test_messages_list_several_ports_comma_separated():
-    racetrack = Path(__file__).parents[2] / "scenarios" / "racetrack.yaml"
+    racetrack = SCENARIOS_DIR / "racetrack.yaml"
     with pytest.raises(WiringError) as err:
         build_wiring(load_scenario(racetrack, ["components.controller.inputs={speed: estimator.velocity}"]))
     assert str(err.value).startswith("components.controller.inputs.speed: controller.pi has no input 'speed' "
