@@ -40,7 +40,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e '.[test,lab,cluster,docs]'
+	$(PY) -m pip install -q -e '.[test,lab,cluster,docs,mutation]'
 	touch $@
 
 clean:

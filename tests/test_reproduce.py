@@ -1,4 +1,6 @@
-"""`cosim reproduce --quick` end to end: every table of the report is filled with numbers."""
+"""`cosim reproduce --quick --readme` end to end: every table of the report is filled with numbers, and
+the README given gets those tables between its results markers, its plots beside it (the same run:
+--readme costs nothing more)."""
 
 from __future__ import annotations
 
@@ -9,12 +11,23 @@ from figure_checks import assert_labelled
 
 from cosim.cli import main
 from cosim_plugins.paper.report_format import filled
+from cosim_plugins.paper.reproduce import README_END, README_START
 
 
 def test_quick_reproduction_fills_every_table(tmp_path, monkeypatch, capsys, saved_figures):
     out = tmp_path / "report"
-    assert main(["reproduce", "--quick", "--out", str(out)]) == 0
+    readme = tmp_path / "project" / "README.md"
+    readme.parent.mkdir()
+    readme.write_text(f"# A project\n\n{README_START}\nstale results\n{README_END}\n\n## Next section\n")
+    assert main(["reproduce", "--quick", "--out", str(out), "--readme", str(readme)]) == 0
+    assert f"updated the results in {readme}" in capsys.readouterr().out
     md = (out / "report.md").read_text()
+    text = readme.read_text()
+    assert text.startswith("# A project\n") and text.endswith("## Next section\n") and "stale results" not in text
+    block = text.split(README_START, 1)[1].split(README_END, 1)[0]
+    assert "### Table II" in block and "### Table IV" in block  # the report's sections, one level down
+    plots = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", block)
+    assert plots and all(link.startswith("docs/results/") and (readme.parent / link).is_file() for link in plots)
     for title in ("Table II", "Table III", "Table IV", "Fig. 6", "Fig. 3, Fig. 7"):
         assert f"## {title}" in md
     assert filled(md) == [], filled(md)
@@ -31,3 +44,10 @@ def test_quick_reproduction_fills_every_table(tmp_path, monkeypatch, capsys, sav
     assert any(name.startswith("paths_") for name in saved_figures)
     assert_labelled(saved_figures)
     assert "on this 2-core machine" not in md and f"{report['machine']['cpus']}-CPU machine" in md
+
+
+def test_reproduce_names_a_missing_readme_before_running_anything(tmp_path, capsys):
+    missing = tmp_path / "nowhere" / "README.md"
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "report"), "--readme", str(missing)]) == 2
+    assert f"--readme {missing} does not exist" in capsys.readouterr().err
+    assert not (tmp_path / "report").exists()

@@ -241,7 +241,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         return 1
     timeout_s = scenario.components[name].timeout_s or scenario.timeout_s
     producers = {src: wiring.outputs[src] for src, _, _, _ in edges}
-    store = PortStore(producers, keep=WINDOW + 2)
+    store = PortStore(producers, keep=WINDOW + 1 + max(wiring.max_delay(name), 1))
     stepper = Stepper(name, component, session, run_id, wiring, store, timeout_s)
     node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply)
     subs = [session.declare_subscriber(bus.outputs_key(run_id, src), lambda s, src=src: node.on_data(src, s))

@@ -82,8 +82,8 @@ class PortCache(PortStore):
     """A store subscribed to the outputs of the components in ``outputs`` of run ``run_id``
     through FIFO channels."""
 
-    def __init__(self, session: zenoh.Session, run_id: str, outputs: dict):
-        super().__init__(outputs)
+    def __init__(self, session: zenoh.Session, run_id: str, outputs: dict, keep: int = 3):
+        super().__init__(outputs, keep)
         self._subs = {c: session.declare_subscriber(bus.outputs_key(run_id, c))
                       for c, ports in outputs.items() if ports}
 

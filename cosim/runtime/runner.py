@@ -169,7 +169,11 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
             private.close()
         raise
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
-    cache = PortStore(wiring.outputs, keep=WINDOW + 2) if endpoint else PortCache(session, run_id, wiring.outputs)
+    # rows kept per producer: a consumer over a delay of d ticks reads d rows back, behind producers up to
+    # WINDOW ticks ahead (nodes) or one (lockstep)
+    delay = wiring.max_delay()
+    cache = PortStore(wiring.outputs, keep=WINDOW + 1 + max(delay, 1)) if endpoint \
+        else PortCache(session, run_id, wiring.outputs, keep=2 + max(delay, 1))
     procs: list[subprocess.Popen] = []
     group = scheduler = error = None
     completed = 0

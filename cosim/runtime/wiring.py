@@ -31,7 +31,8 @@ class Edge:
     delay: int
 
     def label(self) -> str:
-        return f"{self.src}.{self.src_port} -> {self.dst}.{self.dst_port}" + (" (delay 1)" if self.delay else "")
+        delay = f" (delay {self.delay})" if self.delay else ""
+        return f"{self.src}.{self.src_port} -> {self.dst}.{self.dst_port}{delay}"
 
 
 @dataclass
@@ -46,6 +47,10 @@ class Wiring:
 
     def edges_into(self, component: str) -> list[Edge]:
         return [e for e in self.edges if e.dst == component]
+
+    def max_delay(self, consumer: str | None = None) -> int:
+        """The longest delay [ticks] of the edges (into ``consumer`` only, if given); 0 without any."""
+        return max((e.delay for e in self.edges if consumer is None or e.dst == consumer), default=0)
 
     def unused_outputs(self) -> list[str]:
         used = {(e.src, e.src_port) for e in self.edges}

@@ -31,11 +31,16 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", populate_by_name=True)
 
 
+#: The longest delay an input wire may have [ticks]: each producer keeps this many rows more.
+MAX_DELAY_TICKS = 16
+
+
 class InputSpec(_Strict):
-    """One input wire: ``from: component.port``; ``delay: 1`` breaks a cycle (value of the previous tick)."""
+    """One input wire: ``from: component.port``; ``delay: N`` reads the value of N ticks before
+    (``delay: 1`` breaks a cycle: the previous tick's value); at most ``MAX_DELAY_TICKS``."""
 
     source: str = Field(alias="from", pattern=r"^[A-Za-z_][\w-]*\.[A-Za-z_]\w*$")
-    delay: int = Field(0, ge=0, le=1)
+    delay: int = Field(0, ge=0, le=MAX_DELAY_TICKS)
 
     @property
     def component(self) -> str:

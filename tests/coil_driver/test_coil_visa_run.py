@@ -62,19 +62,33 @@ def test_a_supply_that_stays_on_when_the_run_ends_is_a_fault_of_the_run(tmp_path
 
 
 def test_ctrl_c_stops_a_run_with_every_output_off(tmp_path, sim_supplies):
+    """Ctrl-C once the log holds 20 rows (the run's signal handlers are in place by then). The watcher
+    never gives up silently: past its deadline it interrupts the run anyway and the test fails naming why."""
+    seen = {"rows": 0, "in_time": False}
+    ended = threading.Event()  # the run returned by itself (an error): no signal then
+
     def interrupt_once_running():
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 120
         log = tmp_path / "log.csv"
-        while time.monotonic() < deadline:  # log rows: the run (and its signal handlers) is under way
-            if log.is_file() and len(log.read_text().splitlines()) > 20:
-                os.kill(os.getpid(), signal.SIGINT)
-                return
+        # log rows: the run (and its signal handlers) is under way
+        while time.monotonic() < deadline and not ended.is_set():
+            seen["rows"] = len(log.read_text().splitlines()) - 1 if log.is_file() else 0
+            if seen["rows"] >= 20:
+                seen["in_time"] = True
+                break
             time.sleep(0.02)
+        if not ended.is_set():
+            os.kill(os.getpid(), signal.SIGINT)
 
     watcher = threading.Thread(target=interrupt_once_running, daemon=True)
     watcher.start()
-    assert cosim_run(tmp_path, sim_supplies, ADDRESSES, 600.0) == 130
+    try:
+        code = cosim_run(tmp_path, sim_supplies, ADDRESSES, 600.0)
+    finally:
+        ended.set()
     watcher.join()
+    assert seen["in_time"], f"the run logged only {seen['rows']} rows before it ended or 120 s passed"
+    assert code == 130
     summary = summary_of(tmp_path)
     assert summary["status"] == "interrupted" and summary["error"].startswith("stopped by SIGINT")
     assert 20 <= summary["steps"] < 30_000

@@ -60,19 +60,35 @@ def test_unsafe_command_stops_the_run_cleanly(tmp_path, fresh_plugins, value, pr
     assert np.all(np.isfinite(position))
 
 
-def test_coil_driver_answers_an_unsafe_command_with_zero_voltages():
-    """What the plant receives after the fault: the driver's outputs at the faulty tick."""
+@pytest.mark.parametrize("bad", [[np.nan, 0.0, 0.0], [0.0, np.inf, 0.0], [0.0, 0.0, -np.inf],
+                                 [0.0, 0.0, 2 * np.pi * 61], [0.0, 0.0, 2 * np.pi * 60 * (1 + 1e-6)]],
+                         ids=["nan", "inf", "-inf", "61 Hz", "just above 60 Hz"])
+def test_coil_driver_answers_an_unsafe_command_with_zero_voltages(bad):
+    """What the plant receives at the faulty tick; each case on a fresh driver (a latched fault
+    from an earlier case would zero the output whatever the command)."""
     from cosim_plugins.coil_driver.inverse import InverseMagnetics
 
     driver = InverseMagnetics()
     driver.setup({"dt": DT}, np.random.default_rng(0))
     ok = driver.step(0.0, {"omega": np.array([0.0, 0.0, 2 * np.pi * 8])})
-    assert ok["coil_voltage_amp"].max() > 0 and driver.fault is None
-    for bad in (np.array([np.nan, 0.0, 0.0]), np.array([np.inf, 0.0, 0.0]), np.array([0.0, 0.0, 2 * np.pi * 61])):
-        driver.fault = None
-        out = driver.step(DT, {"omega": bad})
-        assert driver.fault
-        assert np.all(out["coil_voltage_amp"] == 0) and float(out["drive_freq"]) == 0
+    assert ok["coil_voltage_amp"].max() > 0 and driver.fault is None and driver.tripped is None
+    out = driver.step(DT, {"omega": np.array(bad)})
+    assert driver.tripped is not None and driver.tripped.name == "unsafe_command"
+    assert np.all(out["coil_voltage_amp"] == 0) and float(out["drive_freq"]) == 0
+    driver.close()
+
+
+def test_a_command_at_the_spin_limit_still_drives_the_coils():
+    """The other side of the boundary: 60 Hz itself, and just below it, are safe commands."""
+    from cosim_plugins.coil_driver.inverse import InverseMagnetics
+
+    for f_hz in (60.0 * (1 - 1e-6), 59.0):
+        driver = InverseMagnetics()
+        driver.setup({"dt": DT}, np.random.default_rng(0))
+        out = driver.step(0.0, {"omega": np.array([0.0, 0.0, 2 * np.pi * f_hz])})
+        assert driver.fault is None and out["coil_voltage_amp"].max() > 0
+        assert float(out["drive_freq"]) == pytest.approx(f_hz)
+        driver.close()
 
 
 def test_recorded_trace_ends_with_zero_coil_voltages(tmp_path, fresh_plugins):

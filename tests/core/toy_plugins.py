@@ -16,7 +16,11 @@ from cosim import Component, ComponentError, InputEnded, Port, hookimpl
 
 
 class KinematicPlant(Component):
-    """Swims along the commanded rotation axis at 2.5 mm/s per Hz (no inertia)."""
+    """Swims along the commanded rotation axis at 2.5 mm/s per Hz (no inertia).
+
+    ``tick_file``: if given, a file to which each step appends its tick number (a line, flushed), so a
+    test can tell how far the run got without a clock.
+    """
 
     inputs = (Port("omega", (3,), "rad/s"),)
     outputs = (Port("position", (3,), "m"),)
@@ -25,11 +29,19 @@ class KinematicPlant(Component):
         self.dt = params["dt"]
         self.p = np.array(params.get("p0", [-0.015, -0.040, 0.0]), dtype=float)
         self.t = 0.0
+        self.ticks = open(params["tick_file"], "a") if params.get("tick_file") else None
+
+    def close(self):
+        if self.ticks is not None:
+            self.ticks.close()
 
     def initial_outputs(self):
         return {"position": self.p.copy()}
 
     def step(self, t, inputs):
+        if self.ticks is not None:
+            self.ticks.write(f"{int(round(t / self.dt))}\n")
+            self.ticks.flush()
         if t > self.t:
             w = inputs["omega"]
             self.p = self.p + 2.5e-3 * w / (2 * np.pi) * (t - self.t)
@@ -68,7 +80,53 @@ class Faulty(Component):
         return {"position": inputs["position"]}
 
 
+class Summer(Component):
+    """A discrete integrator for loop tests: each step adds its input to its output, y_k = y_(k-1) + u_k.
+
+    ``y0``: its initial output. Time plays no part: one step, one addition.
+    """
+
+    inputs = (Port("u", (1,), "1"),)
+    outputs = (Port("y", (1,), "1"),)
+
+    def setup(self, params, rng):
+        self.y = np.array([float(params.get("y0", 0.0))])
+
+    def initial_outputs(self):
+        return {"y": self.y.copy()}
+
+    def step(self, t, inputs):
+        self.y = self.y + inputs["u"]
+        return {"y": self.y.copy()}
+
+
+class Gain(Component):
+    """A proportional law for loop tests: u_k = gain (ref - y_k); initial output ``u0``."""
+
+    inputs = (Port("y", (1,), "1"),)
+    outputs = (Port("u", (1,), "1"),)
+
+    def setup(self, params, rng):
+        self.gain, self.ref = float(params.get("gain", 0.5)), float(params.get("ref", 1.0))
+        self.u0 = float(params.get("u0", 0.0))
+
+    def initial_outputs(self):
+        return {"u": np.array([self.u0])}
+
+    def step(self, t, inputs):
+        return {"u": self.gain * (self.ref - inputs["y"])}
+
+
+class VoltGain(Gain):
+    """The gain law with its output in volts (a port of another unit, for wiring tests)."""
+
+    outputs = (Port("u", (1,), "V"),)
+
+
 @hookimpl
 def cosim_register_components(register):
     register("test.kinematic", KinematicPlant)
     register("test.faulty", Faulty)
+    register("test.summer", Summer)
+    register("test.gain", Gain)
+    register("test.volt_gain", VoltGain)

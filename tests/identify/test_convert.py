@@ -61,3 +61,135 @@ def test_bad_command_files_are_named_with_the_line(tmp_path, capsys, header, row
     assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv")]) == 2
     err = capsys.readouterr().err
     assert str(cmd) in err and message in err, err
+
+
+# ---------------------------------------------------------------- units and period, against hand-computed values
+
+
+def _convert(tmp_path, capsys, positions_rows, *args, header="t_s,x,y,z"):
+    """Commands at 0, 0.05, 0.1 s (1, 2, 3 Hz about z); the given detections; ``cosim convert`` with ``args``."""
+    cmd = _write(tmp_path / "cmd.csv", "t_s,axis_x,axis_y,axis_z,freq_hz",
+                 [[0.0, 0, 0, 1, 1.0], [0.05, 0, 0, 1, 2.0], [0.1, 0, 0, 1, 3.0]])
+    pos = _write(tmp_path / "pos.csv", header, positions_rows)
+    out = tmp_path / "log.csv"
+    code = main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out), *args])
+    return code, out, capsys.readouterr()
+
+
+@pytest.mark.parametrize("args, written_m", [
+    (["--unit", "mm"], (0.1, 0.2, -0.3)),  # 100 mm = 0.1 m
+    (["--unit", "m"], (100.0, 200.0, -300.0)),  # but no swimmer is 100 m away: see the next test
+    (["--unit", "px", "--pixel-mm", "0.19"], (0.019, 0.038, -0.057)),  # 100 px x 0.19 mm = 19 mm
+    (["--unit", "px", "--pixel-mm", "2.5"], (0.25, 0.5, -0.75)),
+], ids=["mm", "m", "px 0.19", "px 2.5"])
+def test_position_units_give_metres_in_the_raw_log(tmp_path, capsys, args, written_m):
+    code, out, _ = _convert(tmp_path, capsys, [[0.0, 100.0, 200.0, -300.0]], *args)
+    assert code == 0
+    row = out.read_text().splitlines()[1].split(",")
+    np.testing.assert_allclose([float(v) for v in row[4:7]], written_m, rtol=1e-9)
+
+
+def test_pixels_read_back_in_mm(tmp_path, capsys):
+    """40 px of 0.19 mm: 7.6 mm in the cleaned log, on every axis's own scale."""
+    rows = [[0.02 * i, 40.0 + i, -20.0, 10.0 * i] for i in range(6)]
+    code, out, _ = _convert(tmp_path, capsys, rows, "--unit", "px", "--pixel-mm", "0.19")
+    assert code == 0
+    log = read_log(out)
+    expected = np.array([[0.19 * (40.0 + i), 0.19 * -20.0, 0.19 * 10.0 * i] for i in range(6)])
+    np.testing.assert_allclose(log.p_mm, expected, rtol=1e-9)
+
+
+def test_the_period_sets_the_grid_and_the_held_commands(tmp_path, capsys):
+    """--dt 0.03 over commands at 0, 0.05, 0.1 s: rows at 0, 30, 60, 90 ms holding 1, 1, 2, 2 Hz;
+    a detection at 31 ms is within half a period (15 ms) of the 30 ms row only."""
+    code, out, printed = _convert(tmp_path, capsys, [[0.031, 1.0, 2.0, 3.0]], "--dt", "0.03")
+    assert code == 0
+    log = read_log(out)
+    np.testing.assert_allclose(log.t_s, [0.0, 0.03, 0.06, 0.09], atol=1e-12)
+    np.testing.assert_allclose(log.omega_hz[:, 2], [1.0, 1.0, 2.0, 2.0], rtol=1e-8)  # as written: 10 digits
+    np.testing.assert_allclose(log.omega_hz[:, :2], 0.0, atol=1e-12)
+    assert np.isnan(log.p_mm[[0, 2, 3]]).all()
+    np.testing.assert_allclose(log.p_mm[1], [1.0, 2.0, 3.0], rtol=1e-9)
+    assert "4 rows of 30 ms" in printed.out
+
+
+def test_the_default_period_is_20_ms(tmp_path, capsys):
+    code, out, printed = _convert(tmp_path, capsys, [[0.0, 1.0, 2.0, 3.0]])
+    assert code == 0 and read_log(out).n == 6  # 0..100 ms
+    assert "6 rows of 20 ms" in printed.out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--unit", "px"], "positions in px need --pixel-mm"),
+    (["--unit", "px", "--pixel-mm", "0"], "positions in px need --pixel-mm"),
+    (["--unit", "px", "--pixel-mm", "-0.19"], "positions in px need --pixel-mm"),
+    (["--dt", "0"], "--dt 0: the control period must be positive"),
+    (["--dt", "-0.02"], "--dt -0.02: the control period must be positive"),
+])
+def test_bad_units_and_periods_are_named(tmp_path, capsys, args, message):
+    code, out, printed = _convert(tmp_path, capsys, [[0.0, 1.0, 2.0, 3.0]], *args)
+    assert code == 2 and message in printed.err, printed.err
+    assert not out.exists()
+
+
+def _files(tmp_path, cmd_rows, pos_rows, cmd_header="t_s,omega_x,omega_y,omega_z", pos_header="t_s,x,y,z"):
+    return (_write(tmp_path / "c.csv", cmd_header, cmd_rows), _write(tmp_path / "p.csv", pos_header, pos_rows))
+
+
+def test_a_recording_that_starts_late_gives_a_log_from_zero(tmp_path, capsys):
+    """Commands from t = 100 s: the log's time starts at 0 and spans the commands (100..100.1 s: 6 rows)."""
+    cmd, pos = _files(tmp_path, [[100.0, 0, 0, 6.0], [100.06, 0, 0, 12.0], [100.1, 0, 0, 18.0]],
+                      [[100.04, 1.0, 2.0, 3.0]])
+    out = tmp_path / "log.csv"
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out)]) == 0
+    log = read_log(out)
+    np.testing.assert_allclose(log.t_s, [0.0, 0.02, 0.04, 0.06, 0.08, 0.1], atol=1e-12)
+    np.testing.assert_allclose(log.omega_hz[:, 2] * 2 * np.pi, [6.0, 6.0, 6.0, 12.0, 12.0, 18.0], rtol=1e-8)
+    np.testing.assert_allclose(log.p_mm[2], [1.0, 2.0, 3.0], rtol=1e-9)
+
+
+def test_a_command_just_after_a_row_is_not_yet_held(tmp_path, capsys):
+    cmd, pos = _files(tmp_path, [[0.0, 0, 0, 6.0], [0.04 + 1e-8, 0, 0, 12.0], [0.1, 0, 0, 18.0]],
+                      [[0.0, 1.0, 2.0, 3.0]])
+    out = tmp_path / "log.csv"
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out)]) == 0
+    np.testing.assert_allclose(read_log(out).omega_hz[:4, 2] * 2 * np.pi, [6.0, 6.0, 6.0, 12.0], rtol=1e-8)
+
+
+def test_of_two_detections_equally_near_the_earlier_is_taken_and_half_a_period_is_near(tmp_path, capsys):
+    """dt = 0.25 s (exact in binary), detections at 0.125 and 0.375 s: each is exactly half a period from
+    two rows."""
+    cmd, pos = _files(tmp_path, [[0.0, 0, 0, 6.0], [0.5, 0, 0, 6.0]],
+                      [[0.125, 1.0, 0.0, 0.0], [0.375, 2.0, 0.0, 0.0]])
+    out = tmp_path / "log.csv"
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out), "--dt", "0.25"]) == 0
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]  # as written (read_log would
+    p_x_mm = [float(r[4]) * 1e3 for r in rows]  # drop the repeated row as a lost detection)
+    assert p_x_mm == pytest.approx([1.0, 1.0, 2.0])  # 0 s: exactly half a period away, kept; 0.25 s: a tie,
+    # the earlier detection; 0.5 s: the later one
+
+
+@pytest.mark.parametrize("which, header, rows, message", [
+    ("positions", "t_s,x,y,z", [[0.0, 1, 2, 3], [np.nan, 1, 2, 3], [np.nan, 1, 2, 3]],
+     "line 3: empty or non-numeric time"),
+    ("positions", "t_s,x,y", [[0.0, 1, 2]], "positions need columns x,y,z (header: t_s,x,y)"),
+    ("positions", "time,x,y,z", [[0.0, 1, 2, 3]], "no time column: name it t_s or t_ms (header: time,x,y,z)"),
+])
+def test_bad_position_files_are_named_with_the_line(tmp_path, capsys, which, header, rows, message):
+    cmd, pos = _files(tmp_path, [[0.0, 0, 0, 6.0], [0.1, 0, 0, 6.0]], rows, pos_header=header)
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert f"{pos}: " in err or f"{pos} line" in err, err
+    assert message in err, err
+
+
+def test_the_summary_counts_rows_measured_detections_and_those_outside(tmp_path, capsys):
+    """Commands over 1..1.1 s (t0 = 1 s); detections at 0.5 s and 1.2 s lie outside [0.99, 1.11] s, the one
+    at 0.995 s and 1.04 s are inside and each gives a row its position."""
+    cmd, pos = _files(tmp_path, [[1.0, 0, 0, 6.0], [1.05, 0, 0, 6.0], [1.1, 0, 0, 6.0]],
+                      [[0.5, 1, 0, 0], [0.995, 2, 0, 0], [1.04, 3, 0, 0], [1.2, 4, 0, 0]])
+    out = tmp_path / "sub" / "dir" / "log.csv"  # folders made as needed
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.strip() == (f"wrote {out}: 6 rows of 20 ms (0.1 s), 2 with a position from 4 detections; "
+                               "2 detections lie outside the commands' time span and were left out")

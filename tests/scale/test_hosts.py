@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import re
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -20,14 +19,9 @@ from cosim.runtime.runner import RunRequest, run
 REMOTE = ("camera", "estimator")  # on host two; plant and controller run here
 
 
-def free_port(address: str) -> int:
-    with socket.socket() as s:
-        s.bind((address, 0))
-        return s.getsockname()[1]
-
-
-def write_hosts(folder: Path, launch: str = "manual") -> Path:
-    ports = [free_port("127.0.0.1"), free_port("127.0.0.2"), free_port("127.0.0.2")]
+def write_hosts(folder: Path, reserved, launch: str = "manual") -> Path:
+    """A hosts file for two loopback "hosts"; ``reserved``: the test's port reservation (see ports.py)."""
+    ports = [reserved.port("127.0.0.1"), reserved.port("127.0.0.2"), reserved.port("127.0.0.2")]
     hosts = folder / "hosts.yaml"
     hosts.write_text(f"""
 launch: {launch}
@@ -68,8 +62,8 @@ def finish(run_proc: subprocess.Popen) -> tuple[int, str]:
     return run_proc.returncode, err
 
 
-def test_a_run_over_two_hosts_logs_the_bytes_of_one_process(tmp_path):
-    hosts = write_hosts(tmp_path)
+def test_a_run_over_two_hosts_logs_the_bytes_of_one_process(tmp_path, ports):
+    hosts = write_hosts(tmp_path, ports)
     run_proc, commands = start_run(tmp_path, hosts)
     assert [re.search(r"node (\w+)", c)[1] for c in commands] == list(REMOTE)
     assert all(c.startswith(f"cd {tmp_path} && exec ") and "--tls-cert certs/two.pem" in c for c in commands)
@@ -83,8 +77,8 @@ def test_a_run_over_two_hosts_logs_the_bytes_of_one_process(tmp_path):
 
 
 @pytest.mark.parametrize("who_checks", ["node", "scheduler"])
-def test_a_node_of_another_experiment_is_refused(tmp_path, who_checks):
-    hosts = write_hosts(tmp_path)
+def test_a_node_of_another_experiment_is_refused(tmp_path, who_checks, ports):
+    hosts = write_hosts(tmp_path, ports)
     run_proc, commands = start_run(tmp_path, hosts)
     other = [c + " --set seed=5" for c in commands]  # another seed: another scenario
     if who_checks == "scheduler":  # a node started without the run's fingerprint: the scheduler compares
@@ -126,8 +120,8 @@ def test_hosts_file_errors_name_the_file_the_field_and_the_line(tmp_path, capsys
     assert "only applies with --processes" in capsys.readouterr().err
 
 
-def test_ssh_launch_starts_the_remote_nodes_in_their_workdir(tmp_path):
-    hosts = write_hosts(tmp_path, launch="ssh")
+def test_ssh_launch_starts_the_remote_nodes_in_their_workdir(tmp_path, ports):
+    hosts = write_hosts(tmp_path, ports, launch="ssh")
     hosts.write_text(hosts.read_text().replace("address: 127.0.0.2,", "address: 127.0.0.2, ssh: lab@two,"))
     bin_dir = tmp_path / "bin"  # an ssh that runs the remote command here, and notes what it was given
     bin_dir.mkdir()

@@ -3,7 +3,6 @@ certificates, so a peer without one signed by the run's CA can neither join nor 
 
 from __future__ import annotations
 
-import socket
 import time
 from pathlib import Path
 
@@ -24,12 +23,10 @@ def certificates(folder: Path, hosts: dict[str, str]) -> dict[str, TlsFiles]:
     return {name: TlsFiles(folder / "ca.pem", folder / f"{name}.pem", folder / f"{name}.key") for name in hosts}
 
 
-def test_a_peer_without_the_runs_certificate_cannot_join_or_publish(tmp_path):
+def test_a_peer_without_the_runs_certificate_cannot_join_or_publish(tmp_path, ports):
     ours = certificates(tmp_path / "run", {"one": "127.0.0.1", "two": "127.0.0.2"})
     theirs = certificates(tmp_path / "other", {"evil": "127.0.0.2"})["evil"]  # another CA, same address
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = ports.port("127.0.0.1")  # held until the node's listener takes it
     endpoint = f"tls/127.0.0.1:{port}"
     node = bus.open_session(listen=[endpoint], tls=ours["one"])
     got: list[bytes] = []
