@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from proc_sockets import socket_inodes
 
 ROOT = Path(__file__).resolve().parents[2]
 TOY = ROOT / "tests" / "core" / "data" / "toy.yaml"
@@ -34,18 +35,6 @@ def _children(pid: int) -> list[int]:
 
 def _cmdline(pid: int) -> list[str]:
     return Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0")
-
-
-def _socket_inodes(pid: int) -> set[str]:
-    inodes = set()
-    for fd in Path(f"/proc/{pid}/fd").iterdir():
-        try:
-            target = os.readlink(fd)
-        except OSError:
-            continue
-        if target.startswith("socket:["):
-            inodes.add(target[8:-1])
-    return inodes
 
 
 def _tcp_listen_inodes() -> set[str]:
@@ -93,7 +82,7 @@ def test_a_process_of_another_user_cannot_join_a_processes_run(tmp_path):
         assert stat.S_IMODE(folder.stat().st_mode) == 0o700 and folder.stat().st_uid == os.getuid()
         listening = _tcp_listen_inodes()
         for pid in [run.pid, *nodes]:
-            assert not (_socket_inodes(pid) & listening), f"process {pid} listens on TCP"
+            assert not (socket_inodes(pid) & listening), f"process {pid} listens on TCP"
         sock = listens[0].split("/", 1)[1]
         if os.getuid() == 0:  # root can act as another user: the real test
             assert _connect_as(65534, sock).startswith("REFUSED PermissionError")

@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+from proc_sockets import socket_inodes
+
 from cosim.runtime.runner import RunRequest, run
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -19,14 +21,7 @@ TOY = ROOT / "tests" / "core" / "data" / "toy.yaml"
 
 def _listening(pid: int) -> list[tuple[str, int]]:
     """(address, port) of the TCP sockets process ``pid`` listens on (IPv4 and IPv6, from /proc)."""
-    mine = set()
-    for fd in Path(f"/proc/{pid}/fd").iterdir():
-        try:
-            target = os.readlink(fd)
-        except OSError:
-            continue
-        if target.startswith("socket:["):
-            mine.add(target[8:-1])
+    mine = socket_inodes(pid)
     out = []
     for table, family in (("/proc/net/tcp", socket.AF_INET), ("/proc/net/tcp6", socket.AF_INET6)):
         for line in Path(table).read_text().splitlines()[1:]:
