@@ -45,6 +45,14 @@ it finishes; at the end one JSON object is printed:
   ``experiment_excitation.csv`` and diagnoses again); ``named_at_once``
   (fraction); ``declared`` (cases whose hidden effect is in a declared
   group); ``experiments`` (cases whose experiment was simulated);
+* ``drift``: ``cases`` (a parameter of the plant drifts: drag, thrust or net
+  weight, from log to log or slowly within logs; nothing hidden), ``flagged``
+  (fraction whose diagnosis flags a drift), ``right`` (fraction flagging a
+  quantity that truly changes, between or within as drawn), ``named`` (cases
+  naming an effect: nothing is hidden), ``steady`` (controls: nothing
+  changes, some with a camera giving a frame only every 2-5 rows) and
+  ``steady_false_flags``; ``no_effect.drift_false_flags`` counts the drift
+  flags of the ``none`` cases and the steady controls together;
 * ``seconds_per_case`` (median wall time of the diagnoses and the true-form refits).
 
     .venv/bin/python benchmarks/blind.py [--cases 60] [--seed 0] [--jobs 2] [--out runs/blind]
@@ -61,14 +69,15 @@ are kept as they are).
 ``--write-case GROUP[:EFFECT]`` only simulates one case into ``DIR/logs`` (and
 its true form into ``DIR/true_form.py``, its truth into ``DIR/case.json``):
 logs to try ``cosim diagnose`` on by hand; GROUP is also ``multi`` (EFFECT:
-two names joined by ``+``) or ``lookalike``. With ``--schedule CSV`` (a
+two names joined by ``+``), ``lookalike`` or ``drift`` (EFFECT: between, within or
+steady). With ``--schedule CSV`` (a
 designed experiment's ``t_s,freq_hz``) it also simulates that experiment's
 log into ``DIR/experiment/log_experiment.csv``.
 
 Records carry ``group`` and ``index`` (the index within the group's own draw:
 ``draw_cases`` for library/none/outside, ``draw_multi_cases``,
-``draw_lookalike_cases``); case folders are ``case_NNN``, ``multi_NNN`` and
-``lookalike_NNN``.
+``draw_lookalike_cases``, ``draw_drift_cases``); case folders are ``case_NNN``,
+``multi_NNN``, ``lookalike_NNN`` and ``drift_NNN``.
 """
 
 from __future__ import annotations
@@ -96,16 +105,20 @@ GOOD_SHARE = 0.5  # discovered_ok: the discovered form reaches this share of the
 
 
 BASE_GROUPS = ("library", "none", "outside")  # drawn together by blind_sim.draw_cases
-GROUPS = BASE_GROUPS + ("multi", "lookalike")
+GROUPS = BASE_GROUPS + ("multi", "lookalike", "drift")
+FAMILIES = ("base", "multi", "lookalike", "drift")
+# the quantities a drifting parameter changes (cosim_plugins.diagnose.per_unit.QUANTITIES), by the simulator's name
+CHANGES = {"drag": {"speed_per_hz", "time_constant_s", "sink_speed_mm_s"}, "thrust": {"speed_per_hz"},
+           "weight": {"sink_speed_mm_s"}}
 
 
 def family(group: str) -> str:
-    """The draw a group's cases come from: "base" (draw_cases), "multi" or "lookalike"."""
-    return group if group in ("multi", "lookalike") else "base"
+    """The draw a group's cases come from: "base" (draw_cases), "multi", "lookalike" or "drift"."""
+    return group if group in FAMILIES else "base"
 
 
 def case_folder(out: Path, case: blind_sim.Case) -> Path:
-    """The case's folder under ``out``: case_NNN (library, none, outside), multi_NNN or lookalike_NNN."""
+    """The case's folder under ``out``: case_NNN (library, none, outside), multi_NNN, lookalike_NNN or drift_NNN."""
     return out / (f"case_{case.index:03d}" if family(case.group) == "base" else f"{case.group}_{case.index:03d}")
 
 
@@ -115,7 +128,7 @@ def _diagnose(logs) -> tuple[dict, object]:
     from cosim_plugins.diagnose.pipeline import Settings, run
 
     plugins.reset()
-    d = run(logs, settings=Settings(discover=True))
+    d = run(logs, settings=Settings(discover=True))  # one process: the bench runs cases side by side
     diag = d.result
     key = next(k for k, v in diag["horizons_s"].items() if v == diag["reference_horizon_s"])
     ranked = [e for e in diag["ranking"] if e.get("identifiable", True)]
@@ -131,6 +144,7 @@ def _diagnose(logs) -> tuple[dict, object]:
         "status": verdict["status"], "fit_notes": diag.get("fit_notes", []),
         "ranking": [[e["effect"], round(e["reduction"], 4)] for e in diag["ranking"]],
         "discovered": {k: found.get(k) for k in ("status", "reduction", "t_stat", "terms", "words")},
+        "drift_flagged": list((diag.get("drift") or {}).get("flagged") or []),
     }
     return fields, d
 
@@ -265,6 +279,14 @@ def summarise(records: list[dict]) -> dict:
     def resolved(r):
         return r["named_at_once"] or (r["declared"] and bool((r.get("after") or {}).get("named_right")))
 
+    drift = [r for r in ok if r["group"] == "drift" and r["regime"].get("drift")]
+    steady = [r for r in ok if r["group"] == "drift" and not r["regime"].get("drift")]
+
+    def right_drift(r):  # a quantity the drawn parameter changes, flagged between or within logs as drawn
+        d = r["regime"]["drift"]
+        want = {("within:" if d["kind"] == "within" else "") + q for q in CHANGES[d["param"]]}
+        return bool(want & set(r["drift_flagged"]))
+
     def pair_kind(r):
         return "outside" if any(e in blind_sim.OUTSIDE for e in r["effects"]) else "library"
 
@@ -290,7 +312,9 @@ def summarise(records: list[dict]) -> dict:
                     "median_reduction_ratio": round(float(np.median([ratio(r) for r in det])), 3) if det else None,
                     "by_effect": by_effect},
         "no_effect": {"cases": len(none), "false_alarms": sum(1 for r in none if r["named"]),
-                      "discovered_alarms": sum(1 for r in none if disc_alarm(r))},
+                      "discovered_alarms": sum(1 for r in none if disc_alarm(r)),
+                      "drift_false_flags": sum(1 for r in none + steady if r.get("drift_flagged")),
+                      "drift_checked": len(none) + len(steady)},
         "outside": {"cases": len(out_form), "discovered_ok": frac(out_form, disc_ok),
                     "time_varying": len(out) - len(out_form),
                     "time_varying_named": sum(1 for r in out if r["true_reduction"] is None and r["named"])},
@@ -303,6 +327,9 @@ def summarise(records: list[dict]) -> dict:
                       "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
                       "declared": sum(1 for r in look if r["declared"]),
                       "experiments": sum(1 for r in look if (r.get("experiment") or {}).get("status") == "simulated")},
+        "drift": {"cases": len(drift), "flagged": frac(drift, lambda r: bool(r["drift_flagged"])),
+                  "right": frac(drift, right_drift), "named": sum(1 for r in drift if r["named_effects"]),
+                  "steady": len(steady), "steady_false_flags": sum(1 for r in steady if r["drift_flagged"])},
         "seconds_per_case": round(float(np.median([r["seconds"] for r in ok])), 1) if ok else None,
     }
 
@@ -331,7 +358,7 @@ def _finished(lines: Path, cases: list, groups) -> list[dict]:
         if not same:
             raise SystemExit(f"--resume: {lines}:{n} is case {rec.get('index')} {rec.get('group')} "
                              f"{rec.get('effect')}, not in this draw (other --cases/--multi-cases/"
-                             "--lookalike-cases/--seed?)")
+                             "--lookalike-cases/--drift-cases/--seed?)")
         if "error" not in rec:
             kept.append(rec)
     return kept
@@ -347,6 +374,8 @@ def main(argv=None) -> int:
                     + " (default library,none,outside)")
     ap.add_argument("--multi-cases", type=int, default=12, help="cases of the multi group (default 12)")
     ap.add_argument("--lookalike-cases", type=int, default=12, help="cases of the lookalike group (default 12)")
+    ap.add_argument("--drift-cases", type=int, default=12,
+                    help="cases of the drift group, one in three a steady control (default 12)")
     ap.add_argument("--only", choices=BASE_GROUPS,
                     help="run only the drawn cases of this group (the same cases as in the full draw); "
                          "the same as --groups GROUP")
@@ -355,13 +384,13 @@ def main(argv=None) -> int:
     ap.add_argument("--summarise", metavar="CASES.jsonl|OUT",
                     help="only print the figures of a (possibly unfinished) run's cases.jsonl")
     ap.add_argument("--write-case", metavar="GROUP[:EFFECT]",
-                    help="only simulate one case (library|none|outside|multi|lookalike, e.g. outside:rotating_flow, "
-                         "multi:wall_drag+actuation_lag) into --out")
+                    help="only simulate one case (library|none|outside|multi|lookalike|drift, e.g. "
+                         "outside:rotating_flow, multi:wall_drag+actuation_lag, drift:between) into --out")
     ap.add_argument("--schedule", metavar="CSV",
                     help="with --write-case: also simulate the experiment log of this t_s,freq_hz schedule")
     args = ap.parse_args(argv)
-    if args.cases < 1 or args.jobs < 1 or args.multi_cases < 1 or args.lookalike_cases < 1:
-        ap.error("--cases, --multi-cases, --lookalike-cases and --jobs must be at least 1")
+    if min(args.cases, args.jobs, args.multi_cases, args.lookalike_cases, args.drift_cases) < 1:
+        ap.error("--cases, --multi-cases, --lookalike-cases, --drift-cases and --jobs must be at least 1")
     if args.only and args.groups:
         ap.error("give --groups or --only, not both")
     groups = [g.strip() for g in (args.groups or args.only or ",".join(BASE_GROUPS)).split(",") if g.strip()]
@@ -390,6 +419,8 @@ def main(argv=None) -> int:
         cases += blind_sim.draw_multi_cases(args.multi_cases, args.seed)
     if "lookalike" in groups:
         cases += blind_sim.draw_lookalike_cases(args.lookalike_cases, args.seed)
+    if "drift" in groups:
+        cases += blind_sim.draw_drift_cases(args.drift_cases, args.seed)
     lines = out / "cases.jsonl"
     records = _finished(lines, cases, groups) if args.resume else []
     lines.write_text("".join(json.dumps(r) + "\n" for r in records))
@@ -414,7 +445,7 @@ def main(argv=None) -> int:
 
 def _order(rec: dict):
     """Records sorted by draw (base, multi, lookalike), then index."""
-    return (("base", "multi", "lookalike").index(family(rec.get("group", ""))), rec["index"])
+    return (FAMILIES.index(family(rec.get("group", ""))), rec["index"])
 
 
 def _progress(rec: dict) -> str:
@@ -423,6 +454,8 @@ def _progress(rec: dict) -> str:
         return rec["error"]
     if rec["group"] == "multi":
         return f"named {rec['named_effects']}, true {rec['true_reductions']}"
+    if rec["group"] == "drift":
+        return f"drift {rec['regime'].get('drift')}: flagged {rec['drift_flagged']}, named {rec['named_effects']}"
     if rec["group"] == "lookalike":
         after = rec.get("after") or {}
         return (f"named {rec['named_effects']}, look-alikes {rec['lookalikes']}"
@@ -439,6 +472,8 @@ def _write_case(ap, args, out: Path) -> int:
             case = blind_sim.draw_multi_case(args.seed, effect.split("+") if effect else None)
         elif group == "lookalike":
             case = blind_sim.draw_lookalike_case(args.seed, effect or None)
+        elif group == "drift":
+            case = blind_sim.draw_drift_case(args.seed, effect or None)
         else:
             case = blind_sim.draw_case(args.seed, group, effect or None)
     except ValueError as exc:

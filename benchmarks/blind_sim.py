@@ -34,7 +34,11 @@ Hidden effects: nine from the project's library (:data:`LIBRARY`), four
 outside it (:data:`OUTSIDE`), or none (:func:`draw_cases`); two at once
 (:func:`draw_multi_cases`: two library effects, or one library and one
 outside); or one of the look-alike family (:data:`LOOKALIKE`) in regimes
-where its members mimic each other (:func:`draw_lookalike_cases`). A case
+where its members mimic each other (:func:`draw_lookalike_cases`); or nothing
+hidden while a parameter of the plant (drag, thrust, net weight) drifts from
+log to log or slowly within logs (:func:`draw_drift_cases`, with steady
+controls, some of them with a camera that gives a frame only every few rows).
+A case
 holds at most one thrust-shaping effect (:data:`THRUST_SHAPING`) and at most
 one water flow (:data:`FLOWS`); every drag acts on the velocity relative to
 the water. Each hidden effect with a true form carries the source of an
@@ -47,8 +51,8 @@ The functions of the "Laws" section are copied verbatim into those files.
     extra = simulate_experiment(cases[0], "experiment_excitation.csv", "out/case_00/experiment")
 
 Random streams: ``draw_cases`` [seed, 0], ``draw_multi_cases`` [seed, 3],
-``draw_lookalike_cases`` [seed, 5]; per case: its draw [case seed, 1], the
-look-alike regime [case seed, 6], its logs [case seed, 2], an experiment's
+``draw_lookalike_cases`` [seed, 5], ``draw_drift_cases`` [seed, 7]; per case: its draw [case seed, 1], the
+look-alike regime [case seed, 6], the drift [case seed, 8], its logs [case seed, 2], an experiment's
 log [case seed, 4].
 """
 
@@ -78,6 +82,8 @@ OUTSIDE = ("rotating_flow", "thrust_nonuniform", "shear_flow", "periodic")
 THRUST_SHAPING = ("actuation_lag", "heading_lag", "step_out")  # at most one of these per case
 FLOWS = ("background_flow", "rotating_flow", "shear_flow")  # at most one of these per case
 LOOKALIKE = ("actuation_lag", "sensor_latency", "heading_lag")  # mimic each other when the spin rate varies slowly
+DRIFT_PARAMS = ("drag", "thrust", "weight")  # what drifts in a drift case (drag: Cd0, Cd1 and Cl0 together)
+DRIFT_KINDS = ("between", "within")  # from log to log, or slowly within each log
 LOOKALIKE_QUADRATIC_EVERY = 7  # draw_lookalike_cases: one case in this many hides a quadratic drag instead
 EXPERIMENT_RADIUS_MM = 25.0  # simulate_experiment's circle
 WALL_LAWS = ("1/d", "exp", "1/d^2")
@@ -97,7 +103,7 @@ class Case:
 
     index: int
     seed: int
-    group: str  # "library" | "none" | "outside" | "multi" | "lookalike"
+    group: str  # "library" | "none" | "outside" | "multi" | "lookalike" | "drift"
     effect: str | None  # library name, outside name, None, or "a+b" (several)
     law: str  # "1/d" | "exp" | "1/d^2" (wall drag), "inside" | "top" (step-out), else ""
     truth: dict  # the effect's drawn parameters, human units
@@ -426,6 +432,44 @@ def draw_multi_cases(n: int, seed: int) -> list[Case]:
     return [draw_multi_case(int(seeds[i]), plan[j], index=i) for i, j in enumerate(order)]
 
 
+def draw_drift_case(seed: int, kind: str | None = None, index: int = 0, **overrides) -> Case:
+    """One case of group "drift": nothing hidden, but a parameter of the plant (:data:`DRIFT_PARAMS`, drawn)
+    changes ``kind`` (:data:`DRIFT_KINDS`; "steady": nothing changes, a control), stream [seed, 8].
+
+    between: 3-6 logs of 20-90 s, the parameter times (1 + change)^log, |change| 3-12 % per log (log-uniform),
+    either sign; within: 1-3 logs of 90-240 s, the parameter times 1 + change t / duration, |change| 8-30 % over
+    each log. Steady controls: 1-6 logs of 20-240 s, and the camera gives a frame every 1, 2, 3 or 5 rows
+    (``frame_every``). In ``regime["drift"]``: {"param", "kind", "change"} (None for a steady case).
+    """
+    rng = np.random.default_rng([seed, 8])
+    kind = str(rng.choice(DRIFT_KINDS + ("steady",))) if kind is None else kind
+    if kind not in DRIFT_KINDS + ("steady",):
+        raise ValueError(f"drift kind {kind!r}: one of {', '.join(DRIFT_KINDS)}, steady")
+    param = str(rng.choice(DRIFT_PARAMS))
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    logs = int(rng.integers(3, 7)) if kind == "between" else int(rng.integers(1, 4))
+    if kind == "steady":
+        logs = int(rng.integers(1, 7))
+    per_log = {"between": (20.0, 90.0), "within": (90.0, 240.0), "steady": (20.0, 240.0)}[kind]
+    durations = rng.uniform(*per_log, logs).tolist()
+    change = sign * (_lu(rng, 0.03, 0.12) if kind == "between" else _lu(rng, 0.08, 0.30))
+    frame_every = int(rng.choice([1, 2, 3, 5])) if kind == "steady" else 1
+    regime = {"log_durations_s": durations, "duration_s": float(sum(durations)), "logs": logs}
+    case = _build(np.random.default_rng([seed, 1]), seed, "drift", [], index, regime | overrides)
+    case.regime["drift"] = None if kind == "steady" else {"param": param, "kind": kind, "change": change}
+    case.regime["frame_every"] = frame_every
+    return case
+
+
+def draw_drift_cases(n: int, seed: int) -> list[Case]:
+    """n drift cases: one in three a steady control, the others alternating between and within; shuffled.
+    Own stream [seed, 7]."""
+    rng = np.random.default_rng([seed, 7])
+    plan = ["steady" if i % 3 == 2 else DRIFT_KINDS[(i - i // 3) % 2] for i in range(n)]
+    order, seeds = rng.permutation(n), rng.integers(0, 2**31 - 1, n)
+    return [draw_drift_case(int(seeds[i]), plan[j], index=i) for i, j in enumerate(order)]
+
+
 def draw_lookalike_case(seed: int, effect: str | None = None, index: int = 0, **overrides) -> Case:
     """One case of group "lookalike": one hidden effect of :data:`LOOKALIKE` (or "quadratic_drag") at a magnitude
     drawn over a wide range, in a regime where the family mimic each other.
@@ -667,6 +711,7 @@ class _Plant:
         # the plant's coefficients as accelerations: [mm/s^2 / Hz], [1/s], [mm/s^2]
         self.k, self.cd0, self.cd1, self.cl0, self.fvs, self.fmax = (ACC * pl[n] for n in ("k", "Cd0", "Cd1", "Cl0",
                                                                                               "Fvs", "Fmax"))
+        self.base = {"thrust": (self.k,), "drag": (self.cd0, self.cd1, self.cl0), "weight": (self.fvs,)}
         self.uses_p = bool(set(self.hidden) & {"rotating_flow", "shear_flow", "wall_drag", "thrust_nonuniform"})
         self.m = max(1, round(dt / SUBSTEP_S))
         self.dt, self.h = dt, dt / self.m
@@ -703,6 +748,18 @@ class _Plant:
         if len(self.passes) % 50 == 0:
             self._guess_rate(float(lam.mean()))
         return P, V
+
+    def drift(self, param: str, factor: np.ndarray) -> None:
+        """Scale the plant's ``param`` (:data:`DRIFT_PARAMS`) by ``factor`` (L,), one per log, from now on."""
+        f = np.asarray(factor, dtype=float)
+        if param == "thrust":
+            self.k = self.base["thrust"][0] * f[:, None]  # multiplies commands (L, 3)
+        elif param == "drag":
+            self.cd0, self.cd1, self.cl0 = (c * f for c in self.base["drag"])
+        elif param == "weight":
+            self.fvs = self.base["weight"][0] * f
+        else:
+            raise ValueError(f"unknown drift parameter {param!r}; one of {', '.join(DRIFT_PARAMS)}")
 
     def _guess_rate(self, lam):
         """The guess's linear response to a change of start velocity or drive, at the drag rate lam [1/s]."""
@@ -873,9 +930,17 @@ def _closed_loop(case: Case, rng, freq: np.ndarray, paths: list, rows: list) -> 
     lost = rng.random((n, n_logs)) < reg["lost_rate"]
     jump = (rng.random((n, n_logs)) < reg["outlier_rate"]) & ~lost  # reflections: 3-15 mm off
     cam += jump[..., None] * unit(rng.normal(size=(n, n_logs, 3))) * rng.uniform(3.0, 15.0, (n, n_logs, 1))
+    every_k = int(reg.get("frame_every", 1))  # a camera giving a frame only every k rows (no draw: streams unchanged)
+    if every_k > 1:
+        lost |= (np.arange(n) % every_k != 0)[:, None]
     any_lost = lost.any(axis=1)
 
     plant = _Plant(case)
+    drift = reg.get("drift")
+    if drift is not None:  # between: (1 + change)^log; within: 1 + change t / the log's duration
+        span = np.asarray(rows, dtype=float) * dt
+        between = drift["kind"] == "between"
+        plant.drift(drift["param"], (1.0 + drift["change"]) ** np.arange(n_logs) if between else np.ones(n_logs))
     m = plant.m
     lag = case.hidden("sensor_latency")[1]["delay_periods"] * m if "sensor_latency" in case.effects else None
     hist = np.empty((n * m + 1, n_logs, 3)) if lag is not None else None  # lag [substeps]
@@ -905,6 +970,8 @@ def _closed_loop(case: Case, rng, freq: np.ndarray, paths: list, rows: list) -> 
         dist = np.sqrt((to * to).sum(1, keepdims=True))
         heading = to / dist if dist.min() > 1e-9 else np.where(dist > 1e-9, to / np.maximum(dist, 1e-9), heading)
         omega[i] = u = freq[i] * heading + u_noise[i]
+        if drift is not None and not between:
+            plant.drift(drift["param"], 1.0 + drift["change"] * np.minimum((i + 0.5) * dt / span, 1.0))
         P, V = plant.period(p, v, u, i * dt)
         if hist is not None:
             hist[i * m + 1:(i + 1) * m] = P[1:-1]

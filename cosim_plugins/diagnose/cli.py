@@ -1,11 +1,13 @@
 """``cosim diagnose``: where a model fails and which physical effects explain it.
 
     cosim diagnose LOG... [--validate LOG...] [--model physical] [--effects-file FILE.py]...
-                   [--add EFFECT]... [--save-model PATH.npz] [--effects NAME,...] [--reference S] --out DIR
+                   [--add EFFECT]... [--save-model PATH.npz] [--effects NAME,...] [--reference S]
+                   [--per-log PARAM,...] [--t-start S,...] [--no-drift] --out DIR
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -36,9 +38,20 @@ def add_commands(subparsers) -> None:
     d.add_argument("--discover", action="store_true",
                    help="also fit a sparse combination of candidate force terms to the error left (done anyway "
                         "when no listed effect explains it); writes DIR/discovered_effect.py")
+    d.add_argument("--per-log", metavar="PARAM[,PARAM...]",
+                   help="fit these base parameters of the model free per log, the rest shared, and rank the fit "
+                        "like an effect by its held-out drop (default drift test: k,Cd1,Fvs)")
+    d.add_argument("--t-start", metavar="S[,S...]",
+                   help="each log's start time [s], in the order of LOG... (the drift's order; default: the "
+                        "order the logs are given in)")
+    d.add_argument("--no-drift", action="store_true",
+                   help="skip the test for drift between and within the logs")
     d.add_argument("--save-model", metavar="PATH.npz",
                    help="with --add: save the model with the added effects (refitted) as a model file the "
                         "Kalman filter and the MPC load (components.estimator.params.model=PATH.npz)")
+    d.add_argument("--jobs", type=int, default=min(4, os.cpu_count() or 1), metavar="N",
+                   help="processes the candidates' fits are spread over (default: the CPUs, at most 4); the "
+                        "figures are the same for any N")
     d.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     d.add_argument("--out", required=True, metavar="DIR", help="output directory")
     d.set_defaults(func=cmd_diagnose)
@@ -61,9 +74,16 @@ def cmd_diagnose(args) -> int:
         candidates = [n.strip() for n in args.effects.split(",") if n.strip() and n.strip() != "none"]
     if args.save_model and not args.add:
         raise UserError("--save-model saves the model with the effects of --add: name at least one (--add EFFECT)")
+    if args.jobs < 1:
+        raise UserError(f"--jobs {args.jobs}: give at least 1")
+    per_log = [n.strip() for n in args.per_log.split(",") if n.strip()] if args.per_log else None
+    if args.no_drift and (per_log or args.t_start):
+        raise UserError("--no-drift skips the drift test that --per-log and --t-start configure: give one or the "
+                        "other")
     settings = Settings(model=args.model, effects_files=args.effects_file, add=args.add, candidates=candidates,
                         reference=args.reference, seed=args.seed, discover=args.discover,
-                        max_effects=args.max_effects)
+                        max_effects=args.max_effects, jobs=args.jobs, drift=not args.no_drift, per_log=per_log,
+                        t_start=_t_start(args.t_start, len(args.logs)))
     diag = run(args.logs, args.validate, settings, progress=_progress)
     saved = save_model(diag.added_model.savable(), args.save_model) if args.save_model else None
     files = write_outputs(diag, out)
@@ -75,6 +95,19 @@ def cmd_diagnose(args) -> int:
               f"--set components.estimator.params.model={saved} (the Kalman filter) or "
               f"components.controller.params.model={saved} (the MPC)")
     return 0
+
+
+def _t_start(text: str | None, n_logs: int) -> list | None:
+    """--t-start's start times [s], one per log, or a UserError naming what is wrong."""
+    if text is None:
+        return None
+    try:
+        times = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise UserError(f"--t-start {text}: give one start time in seconds per log, separated by commas") from None
+    if len(times) != n_logs:
+        raise UserError(f"--t-start gives {len(times)} start times for {n_logs} logs: give one per LOG, in order")
+    return times
 
 
 def save_model(model, path) -> Path:
@@ -117,6 +150,7 @@ def format_diagnosis(r: dict) -> str:
         lines.append(f"{'+':<5}{'discovered':<20}{_num(found['rollout_mm'][key]):>12}{found['reduction']:>+11.1%}"
                      f"{found['t_stat']:>7.1f}   ({len(found['terms'])} terms, {found['file']})")
     lines += _stepwise_lines(r, key)
+    lines += _drift_lines(r.get("drift") or {}, key)
     for note in r.get("fit_notes", ()):
         lines.append(f"note: {note}")
     lines += [""] + [f"  {line}" for line in legend()]
@@ -145,6 +179,22 @@ def _stepwise_lines(r: dict, key: str) -> list[str]:
                      + (f" ({exp['separation_over_floor']:.1f}x the noise floor)"
                         if exp["separation_over_floor"] else ""))
     return lines
+
+
+def _drift_lines(d: dict, key: str) -> list[str]:
+    """The drift test: the held-out drop of the per-log and per-block fits, each quantity's test, the flags."""
+    if d.get("skipped"):
+        return ["", f"drift: not tested ({d['skipped']})"]
+    lines = []
+    for what, fit in (("per log", d.get("between")), ("per block", d.get("within"))):
+        if not fit:
+            continue
+        tests = ", ".join(f"{q} p={v['p']:.0e}" for q, v in fit["quantities"].items())
+        lines.append(f"drift, {', '.join(d['params'])} free {what}: {_num(fit['rollout_mm'][key])} mm at {key} s "
+                     f"({fit['reduction']:+.1%}, t = {fit['t_stat']:.1f}); {tests}")
+    if lines:
+        lines.append("drift flagged: " + (", ".join(d["flagged"]) if d["flagged"] else "none (the logs agree)"))
+    return [""] + lines if lines else []
 
 
 def _num(v) -> str:

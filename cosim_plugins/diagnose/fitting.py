@@ -4,6 +4,9 @@ more effects, held-out evaluations, rank entries and paired t (:class:`Fitter`).
 from __future__ import annotations
 
 import inspect
+import multiprocessing
+import pickle
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -57,6 +60,21 @@ class Fitter:
         fit.fitted = fitted
         return fit, fitted.identifiable
 
+    def with_each(self, before: Fit, effects, quick: bool = False) -> list:
+        """[:meth:`with_effects` (``before``, [effect]) for each effect], in order, over ``s.jobs`` forked
+        processes (they inherit this fitter's data; each returns its fit). One process when ``jobs`` is 1, the
+        platform cannot fork, or an effect cannot be sent between processes (then each fit runs here)."""
+        jobs = min(self.s.jobs, len(effects))
+        if jobs > 1 and "fork" in multiprocessing.get_all_start_methods() and _picklable(effects):
+            global _FORKED
+            _FORKED = (self, before, list(effects), quick)
+            try:
+                with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
+                    return list(pool.map(_with_one, range(len(effects))))
+            finally:
+                _FORKED = None
+        return [self.with_effects(before, [e], quick=quick) for e in effects]
+
     def refit(self, jm) -> Fit:
         """``jm`` refitted from its own solution (every parameter free, the same budget as a candidate's fit)."""
         fit_joint(jm, self.ttr, self.fit_starts, self.fit_len, max_nfev=self.s.max_nfev, score=self.score,
@@ -68,6 +86,7 @@ class Fitter:
         host = type(final.model.host)(**final.model.host.options)
         host.dt_s = final.model.dt_s
         jm = JointModel(host, [*self.added, *keep], base_params=final.model.params())
+        jm.per_unit = final.model.per_unit
         return self.refit(jm)
 
     def paired_t(self, ref_ev: dict, new_ev: dict) -> float:
@@ -94,6 +113,22 @@ class Fitter:
                 "t_stat": self.paired_t(before.ev[key], fit.ev[key]), "identifiable": identifiable,
                 "params": params, "fit": fitted.fit if fitted else {}, "conditioning": jm.conditioning,
                 "doc": effect.doc}
+
+
+_FORKED = None  # (fitter, before, effects, quick) of Fitter.with_each, inherited by its forked workers
+
+
+def _with_one(i: int):
+    fitter, before, effects, quick = _FORKED
+    return fitter.with_effects(before, [effects[i]], quick=quick)
+
+
+def _picklable(obj) -> bool:
+    try:
+        pickle.dumps(obj)
+    except Exception:  # an effect file's function that another process cannot import, etc.
+        return False
+    return True
 
 
 @dataclass

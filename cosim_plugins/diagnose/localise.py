@@ -12,6 +12,7 @@ feature            unit    meaning
 x, y, z            mm      mean position (workspace region)
 wall_distance      mm      smallest distance to the nearest wall of the 150 mm tank
 centre_distance    mm      mean distance from the manipulator centre
+log                1       the log (experiment) the window is in, in the order recorded
 time               s       time in the log when the prediction starts
 path_phase         deg     angle around the log's path (principal plane)
 speed              mm/s    mean speed
@@ -44,6 +45,7 @@ FEATURES = {  # name: (unit, words)
     "z": ("mm", "z position"),
     "wall_distance": ("mm", "distance to the nearest wall"),
     "centre_distance": ("mm", "distance from the centre"),
+    "log": ("", "log (in the order recorded)"),
     "time": ("s", "time in the log"),
     "path_phase": ("deg", "path phase"),
     "speed": ("mm/s", "speed"),
@@ -52,7 +54,7 @@ FEATURES = {  # name: (unit, words)
     "command_rate": ("Hz/s", "rate of change of the command"),
     "heading_z": ("", "vertical component of the swimming direction"),
 }
-GROUPS = {"where": ("x", "y", "z", "wall_distance", "centre_distance"), "when": ("time", "path_phase"),
+GROUPS = {"where": ("x", "y", "z", "wall_distance", "centre_distance"), "when": ("log", "time", "path_phase"),
           "conditions": ("speed", "spin", "angle_of_attack", "command_rate", "heading_z")}
 
 
@@ -75,6 +77,7 @@ def window_features(tl, starts: np.ndarray, lead: int, steps: int) -> dict[str, 
             "x": pm[:, 0], "y": pm[:, 1], "z": pm[:, 2],
             "wall_distance": wall,
             "centre_distance": np.nanmean(np.linalg.norm(p, axis=2), axis=1),
+            "log": tl.log[starts + lead].astype(float),
             "time": tl.t_s[starts + lead],
             "path_phase": _path_phase(tl, pm, tl.log[starts + lead]),
             "speed": np.nanmean(vn, axis=1),

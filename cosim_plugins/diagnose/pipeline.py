@@ -35,6 +35,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from cosim.contract.errors import UserError
+from cosim_plugins.diagnose import drift
 from cosim_plugins.diagnose.experiment import Experiment, design_experiment
 from cosim_plugins.diagnose.fitting import Fitter, fit_model, reduction_of, velocity_time_constant
 from cosim_plugins.diagnose.localise import localise, window_features
@@ -58,6 +59,11 @@ MIN_LEAD_ROWS = 10
 FIT_WINDOW_S = 0.5  # length of the training windows
 FIT_WINDOWS = 700  # training windows (a random sample)
 EVAL_STRIDE = 2  # rows between evaluation window starts
+# an archive's held-out windows: at most this many, evenly spread over every log. The verdict's paired t runs
+# over 1 s blocks; 4000 windows keep >= 1 per block up to about an hour of held-out data and put the standard
+# error of a mean held-out error well under 1 % of it, far below the 5-10 % drops the tests ask for.
+MAX_EVAL_WINDOWS = 4000
+MAX_LOCALISE_WINDOWS = 6000  # windows of all logs the localisation and the plots use, evenly spread
 BLOCK_S = 5.0  # split: block length
 HOLDOUT_EVERY = 3  # split: every third block is held out
 MIN_FIT_WINDOWS = 60
@@ -87,6 +93,10 @@ class Settings:
     seed: int = 0
     discover: bool = False  # also when no listed effect explains the error
     max_effects: int = MAX_EFFECTS  # effects the stepwise search may choose
+    jobs: int = 1  # processes the candidates' fits are spread over
+    drift: bool = True  # test the logs for drift between and within them (:mod:`.drift`)
+    per_log: list | None = None  # base parameters fitted free per log (--per-log); None: drift's defaults
+    t_start: list | None = None  # each log's start time [s] (--t-start); None: the file order
 
 
 @dataclass
@@ -137,8 +147,10 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     fit_len = max(4, int(round(FIT_WINDOW_S / dt)))
     frac = float(np.mean(tall.measured))  # sparse camera frames: ask for a share of what the logs have
     fit_starts = _sample(ttr.window_starts(fit_len, 0.7 * frac), s.fit_windows, s.seed)
-    test_starts = tte.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE]
-    all_starts = tall.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE]
+    test_starts = _evenly(tte.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE],
+                          MAX_EVAL_WINDOWS)
+    all_starts = _evenly(tall.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE],
+                         MAX_LOCALISE_WINDOWS)
     _check_sizes(fit_starts, fit_len, test_starts, tte, lead, steps[s.reference], dt)
     sigma = noise_sigma_mm(tall)
     if not np.all(np.isfinite(sigma)):
@@ -215,6 +227,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         "localisation": loc, "added": added_out, "ranking": ranking,
         "stepwise": stepwise_json(selection, s.reference, s.max_effects),
     }
+    result["drift"] = _drift(s, split, selection, fitter, train_open, result, say)
     result["fit_notes"] = fit_notes(result)
     result["verdict"] = verdict(result, s.reference)
     source = None
@@ -250,6 +263,40 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                      errors={"baseline": err_all, "after": after_all, "after_label": after_label},
                      features=features, curves=curves, discovered_source=source,
                      added_model=after.model if after else None, experiment=experiment)
+
+
+def _drift(s: Settings, split: dict, selection: Selection, fitter: Fitter, train_starts, result: dict,
+           say) -> dict:
+    """diagnosis.json's ``drift`` (see :mod:`.drift`); with ``--per-log`` its fit joins the ranking. A chosen
+    effect that the drift makes unnecessary leaves ``result["stepwise"]["steps"]`` for its ``dropped``."""
+    final, ranking = selection.final, result["ranking"]
+    if s.per_log is not None or s.t_start is not None:
+        s.drift = True
+    if not s.drift:
+        return {"flagged": [], "skipped": "--no-drift"}
+    if split["kind"] != "time_blocks":
+        return {"flagged": [], "skipped": "the held-out data are --validate logs: drift is tested on held-out "
+                "blocks of the same logs"}
+    if not hasattr(final.model.host, "set_columns"):
+        return {"flagged": [], "skipped": f"the {final.model.host.name} model has no base parameters to fit per log"}
+    chosen = [st.effects[0] for st in selection.steps]
+    try:
+        out = drift.analyse(final, fitter, train_starts, s.per_log, s.t_start, chosen,
+                            result["noise"]["floor_mm"][s.reference], say)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    gone = {g["effect"]: g for g in out.get("given_drift", ()) if not g["kept"]}
+    if gone:
+        sw = result["stepwise"]
+        sw["dropped"] += [{"effect": n, "reduction": g["reduction"], "t_stat": g["t_stat"], "given": "drift"}
+                          for n, g in gone.items()]
+        sw["steps"] = [st for st in sw["steps"] if st["effects"][0] not in gone]
+        selection.steps = [st for st in selection.steps if st.effects[0] not in gone]
+    entry = drift.candidate_entry(out, s.reference) if s.per_log else None
+    if entry is not None:
+        at = next((i for i, e in enumerate(ranking) if e["reduction"] < entry["reduction"]), len(ranking))
+        ranking.insert(at, entry)
+    return out
 
 
 def stepwise_json(sel: Selection, key: str, max_effects: int) -> dict:
@@ -341,6 +388,13 @@ def _sample(starts, n, seed):
     if len(starts) <= n:
         return starts
     return np.sort(np.random.default_rng(seed).choice(starts, n, replace=False))
+
+
+def _evenly(starts: np.ndarray, n: int) -> np.ndarray:
+    """At most ``n`` of ``starts``, evenly spaced along them (every log keeps its share)."""
+    if len(starts) <= n:
+        return starts
+    return starts[np.unique(np.linspace(0, len(starts) - 1, n).round().astype(np.int64))]
 
 
 def _check_sizes(fit_starts, fit_len, test_starts, tte, lead, k_ref, dt):

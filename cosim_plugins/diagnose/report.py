@@ -220,6 +220,7 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
                           f"edit its form and refit with `--effects-file {found['file']} --add discovered`."]
         else:
             lines.append(found["explanation"] + ".")
+    lines += _drift_section(r.get("drift") or {}, key)
     loc = r["localisation"]
     lines += ["", "## Where, when and under which conditions the error concentrates", "",
               f"Error of {loc['model']} at {r['reference_horizon_s']:g} s on {loc['windows']} windows of all logs "
@@ -237,6 +238,36 @@ def write_report(diag, out: Path, pngs: list[str]) -> Path:
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def _drift_section(d: dict, key: str) -> list[str]:
+    """Markdown: the drift test, per log (values of each identifiable quantity) and per block of time."""
+    if not d or d.get("skipped"):
+        return ["", "## Drift between and within the logs", "", f"Not tested: {d.get('skipped', 'no result')}."]
+    lines = ["", "## Drift between and within the logs", "",
+             f"{', '.join(d['params'])} refitted free per log ({d['order']}) and per block of time, the rest "
+             "shared. Flagged: " + (", ".join(d["flagged"]) if d["flagged"] else "nothing (the logs agree)") + ".", ""]
+    lines += [f"- {w}" for w in d["words"]]
+    b = d.get("between")
+    if b:
+        lines += ["", f"Per log: held-out error at {key} s {_f(b['rollout_mm'][key])} mm ({b['reduction']:+.1%}, "
+                      f"t = {b['t_stat']:.1f}).", "", "| quantity | per log (± std) | homogeneity p | trend t | "
+                      "change per log |", "|---|---|---|---|---|"]
+        for q, v in b["quantities"].items():
+            vals = ", ".join(f"{x:.3g} ± {e:.2g}" if x is not None and e is not None else "-"
+                             for x, e in zip(v["values"], v["std"]))
+            lines.append(f"| {q} | {vals} | {v['p']:.1e} | {v['slope_t']:.1f} | {v['change_per_step']:+.1%} |")
+    w = d.get("within")
+    if w:
+        lines += ["", f"Per block of time ({w['blocks']} blocks): held-out error at {key} s "
+                      f"{_f(w['rollout_mm'][key])} mm ({w['reduction']:+.1%}, t = {w['t_stat']:.1f}; against per "
+                      f"log t = {w['t_vs_per_log']:.1f}).", "", "| quantity | trend within the logs, per minute | t |",
+                  "|---|---|---|"]
+        lines += [f"| {q} | {v['change_per_min']:+.1%} | {v['slope_t']:.1f} |" for q, v in w["quantities"].items()]
+    for g in d.get("given_drift", ()):
+        lines.append(f"- once the drift is in, {g['effect']} lowers the error by {g['reduction']:.0%} "
+                     f"(t = {g['t_stat']:.1f}): " + ("kept" if g["kept"] else "dropped"))
+    return lines
 
 
 def _stepwise_section(r: dict, key: str) -> list[str]:

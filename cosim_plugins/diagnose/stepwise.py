@@ -169,8 +169,7 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
     entries, fits = {}, {}
     todo = list(effects)
     if screen and len(effects) > SCREEN_KEEP:
-        for effect in effects:
-            fit, identifiable = fitter.with_effects(before, [effect], quick=True)
+        for effect, (fit, identifiable) in zip(effects, fitter.with_each(before, effects, quick=True)):
             entries[effect.name] = {**fitter.entry(effect, fit, identifiable, before), "screened": True}
             fits[effect.name] = fit
         hopeful = sorted((e for e in entries.values() if e["identifiable"] and e["reduction"] >= SCREEN_MIN),
@@ -179,8 +178,7 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
         if say:
             say(f"  screened {len(effects)} candidates by a quick fit; refitting "
                 + (", ".join(e.name for e in todo) or "none"))
-    for effect in todo:
-        fit, identifiable = fitter.with_effects(before, [effect])
+    for effect, (fit, identifiable) in zip(todo, fitter.with_each(before, todo)):
         entries[effect.name] = fitter.entry(effect, fit, identifiable, before)
         fits[effect.name] = fit
     ordered = sorted(entries.values(), key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cosim_plugins.diagnose.drift import sentence as drift_sentence
 from cosim_plugins.diagnose.wording import params_text
 
 MIN_REDUCTION = 0.10
@@ -92,8 +93,31 @@ def verdict(result: dict, key: str) -> dict:
     Returns ``{"effect": the first effect named or None, "effects": every effect named, in the order chosen,
     "lookalikes": [[effect, ...], ...] groups the logs cannot tell apart, "status", "explanation"}``; status is
     "explained", "discovered" (a form outside the library explains what the named effects leave, or all of it),
+    "drift" (no effect named, and the logs disagree with each other or drift within: :mod:`.drift`),
     "noise_floor" or "unexplained".
     """
+    out = _verdict(result, key)
+    words = drift_sentence(result.get("drift") or {}, key)
+    if words and out["status"] in ("unexplained", "noise_floor"):
+        return {**out, "status": "drift", "explanation": words + " " + _drift_left(result, key)}
+    if words:
+        return {**out, "explanation": out["explanation"] + " " + words}
+    return out
+
+
+def _drift_left(result: dict, key: str) -> str:
+    """What the drifting model leaves, against the noise floor."""
+    d, floor = result["drift"], result["noise"]["floor_mm"][key]
+    fit = d.get("between") if any(not f.startswith("within:") for f in d["flagged"]) else d.get("within")
+    left = fit["rollout_mm"][key]
+    if floor is None:
+        return f"With the drift in, {left:.2f} mm remain at {key} s."
+    return (f"With the drift in, {left:.2f} mm remain at {key} s against a noise floor of {floor:.2f} mm"
+            + (": what is left is noise." if left <= (1 + AT_FLOOR) * floor else
+               ". " + _clues_text(result)))
+
+
+def _verdict(result: dict, key: str) -> dict:
     ref = result["reference"] or result["baseline"]
     err, floor = ref["rollout_mm"][key], result["noise"]["floor_mm"][key]
     sw = result["stepwise"]
@@ -175,8 +199,10 @@ def _steps_text(result: dict, key: str) -> str:
                      f"{sw['steps'][0]['rollout_before_mm']:.2f} to {j['rollout_mm'][key]:.2f} mm "
                      f"({j['reduction'][key]:.0%}).")
     for d in sw.get("dropped", ()):
-        parts.append(f"{d['effect']} was dropped once the others were in (it then lowers the error by only "
-                     f"{d['reduction']:.0%}, t = {d['t_stat']:.1f}).")
+        parts.append(f"{d['effect']} was dropped once "
+                     + ("the drift between the logs was allowed for" if d.get("given") == "drift" else
+                        "the others were in")
+                     + f" (it then lowers the error by only {d['reduction']:.0%}, t = {d['t_stat']:.1f}).")
     return " ".join(parts)
 
 

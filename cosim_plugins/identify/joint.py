@@ -87,6 +87,22 @@ class Solve:
     lookback: int
 
 
+@dataclass(frozen=True)
+class UnitOffsets:
+    """Base parameters that differ per unit of timeline rows (a log, a block of time): a window starting in
+    unit u uses ``shared + offsets[u]``. ``names`` (F,), ``of_row`` (n,) the unit of each row of the timelines
+    the model is evaluated on, ``offsets`` (U, F) in each parameter's own unit."""
+
+    names: tuple
+    of_row: np.ndarray
+    offsets: np.ndarray
+
+    def values(self, prm: dict, starts: np.ndarray) -> dict:
+        """{name: (w,) the value each window at ``starts`` uses}."""
+        u = self.of_row[starts]
+        return {n: prm[n] + self.offsets[u, j] for j, n in enumerate(self.names)}
+
+
 def supports_effects(model) -> bool:
     """True if ``model`` can take force terms and expose its parameters (the physical model can)."""
     return all(hasattr(model, a) for a in ("terms", "all_params", "set_params", "params"))
@@ -117,6 +133,7 @@ class JointModel:
         self.std: dict = {}  # standard errors after fit_joint
         self.conditioning: dict = {}  # after fit_joint, see conditioning()
         self.window_params: dict = {}  # after fit_joint: the short-window fit's parameters, before any polish
+        self.per_unit: UnitOffsets | None = None  # base parameters that differ per log or block of time
         start = {q.name: q.init for q in self.param_list}
         start.update(host.params() if supports_effects(host) else {})
         start.update(base_params or {})
@@ -200,9 +217,15 @@ class JointModel:
         xt = np.ascontiguousarray(x0.reshape(c * w, 6).T)
         out = np.empty((m + length + 1, 3, c * w))
         out[0] = xt[:3]
-        for j in range(m + length):
-            xt = self.host.predict_t(xt, Ut[j], self.dt_s, Up[j]) if self._held else self._step(xt, Ut[j])
-            out[j + 1] = xt[:3]
+        if self.per_unit is not None:
+            self.host.set_columns({n: np.tile(v, c) for n, v in self.per_unit.values(self.prm, starts).items()})
+        try:
+            for j in range(m + length):
+                xt = self.host.predict_t(xt, Ut[j], self.dt_s, Up[j]) if self._held else self._step(xt, Ut[j])
+                out[j + 1] = xt[:3]
+        finally:
+            if self.per_unit is not None:
+                self.host.set_columns(None)
         traj = out.transpose(2, 0, 1).reshape(c, w, m + length + 1, 3)
         for effect in self.sensors:
             prm = {q.name: self.prm[f"{effect.name}.{q.name}"] for q in effect.params}

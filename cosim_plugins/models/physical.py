@@ -140,6 +140,7 @@ class PhysicalModel(Model):
         self._pb = float(np.linalg.norm(pb_mm))
         self._scale = 1000.0 / mass_mg
         self._theta = np.array([p.init for p in self.all_params()])
+        self._columns: dict | None = None  # see set_columns
         self.fit_info: dict = {}
 
     @classmethod
@@ -193,6 +194,18 @@ class PhysicalModel(Model):
     def params(self) -> dict:
         return {p.name: float(t) for p, t in zip(self.all_params(), self._theta)}
 
+    def set_columns(self, columns: dict | None) -> None:
+        """Base parameters that differ per batch column in :meth:`predict_t`: ``{name: (n,) values}`` for a
+        batch of n columns (e.g. a drag fitted per log), None to share them again. Extra terms keep reading
+        the shared values of the base parameters they reuse."""
+        if not columns:
+            self._columns = None
+            return
+        unknown = set(columns) - set(BASE_NAMES)
+        if unknown:
+            raise ValueError(f"only base parameters can differ per column, not {sorted(unknown)}")
+        self._columns = {BASE_NAMES.index(n): np.asarray(v, dtype=float) for n, v in columns.items()}
+
     @property
     def n_params(self) -> int:
         return len(self._theta)
@@ -221,8 +234,13 @@ class PhysicalModel(Model):
         ``ut_prev`` (3, n): the previous step's commands, which ``hold="exact"`` uses (default: ``ut``).
         """
         n, h = self.options["substeps"], dt_s / self.options["substeps"]
+        th = self._theta
+        if self._columns is not None:
+            th = list(th)
+            for i, values in self._columns.items():
+                th[i] = values
         for i in range(n):
-            xt = self._step_t(xt, ut, h, self._theta, ut_prev if i == 0 else None)
+            xt = self._step_t(xt, ut, h, th, ut_prev if i == 0 else None)
         return xt
 
     def _step_t(self, x, u, h, th, u_prev=None):
@@ -231,20 +249,28 @@ class PhysicalModel(Model):
         s = self._scale
         f, v_geo = u, v  # the command whose force acts, the velocity the geometry is taken at
         if self._exact:  # see the module doc
-            z1 = s * h * max(float(th[2]), 0.0)
-            f1 = float(phi1(z1))
-            if u_prev is not None:
+            if np.ndim(th[2]):  # a drag per column (set_columns)
+                z1 = s * h * np.maximum(th[2], 0.0)
+                f1 = phi1(z1)
+                w = np.where(z1 > 1e-6, (1.0 - f1) / (np.maximum(z1, 1e-300) * f1), 0.5 + z1 / 12.0)
+                decay = np.exp(-z1)
+            else:
+                z1 = s * h * max(float(th[2]), 0.0)
+                f1 = -math.expm1(-z1) / z1 if z1 >= 1e-6 else 1.0 - 0.5 * z1  # phi1 on a scalar
                 w = (1.0 - f1) / (z1 * f1) if z1 > 1e-6 else 0.5 + z1 / 12.0
+                decay = math.exp(-z1)
+            if u_prev is not None:
                 f = w * u + (1.0 - w) * u_prev
             drive = th[0] * f
             drive[2] += th[4]
-            v_geo = math.exp(-z1) * v + (s * h * f1) * drive  # the step's mean velocity, drag by Cd1 alone
+            v_geo = decay * v + (s * h * f1) * drive  # the step's mean velocity, drag by Cd1 alone
         sin_a, lift, cent = _geometry_t(p, v_geo, u, self._pb)
         a = th[0] * f + th[3] * lift + th[5] * cent
         a[2] += th[4]
         drag = th[1] * sin_a + th[2]
         if self.terms:
-            named = dict(zip(self._param_names(), th))
+            # under set_columns the terms read the shared values of the base parameters
+            named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
             slowing = 0.0
             for term, moving in zip(self.terms, self._velocity_terms()):
                 prm = _term_params(term, named)

@@ -1,0 +1,236 @@
+"""Drift: do the logs disagree with each other, or does a log disagree with itself over time?
+
+A lab's plant changes under it: the water warms and thins over a day, a
+swimmer is re-inserted with its magnet slightly turned, a coil heats. After
+the stepwise search, the chosen model's base parameters are refitted free
+(:mod:`.per_unit`)
+
+* per log, in the order recorded (the file order, or ``--t-start``), and
+* per block of time within each log (a slow trend over minutes),
+
+the rest shared. A quantity (the speed per Hz, the velocity time constant,
+the sinking speed: :data:`~.per_unit.QUANTITIES`) is *flagged* when
+
+* the per-log (per-block) model lowers the held-out error at the reference
+  horizon by at least :data:`MIN_REDUCTION`, with paired t >= :data:`MIN_T`,
+  against the shared model: the drift matters for prediction, and
+* its values differ beyond their uncertainty: between logs, the chi-square
+  test of their homogeneity gives p < :data:`P_FLAG`; within logs, the
+  trend against time within each log gives p < :data:`P_FLAG` and the
+  per-block model also beats the per-log one on held-out data, and
+* its own variation matters: holding it at its shared value in every unit
+  (the other quantities as fitted, :func:`~.per_unit.held`) raises the
+  held-out error with paired t >= :data:`MIN_T`. A quantity the logs barely
+  determine (a time constant on logs at one speed) scatters from log to log
+  through the other parameters' misfit, and is not flagged for that.
+
+``--per-log PARAM,...`` fits the parameters named free per log (the rest
+shared) as a candidate ranked like an effect, by its held-out drop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cosim_plugins.diagnose.per_unit import (
+    CLUSTER_S,
+    DRIFT_PARAMS,
+    QUANTITIES,
+    between_logs,
+    block_units,
+    fit_per_unit,
+    held,
+    log_units,
+    quantities,
+    sample_per_unit,
+    within_logs,
+)
+
+MIN_REDUCTION = 0.05
+MIN_T = 3.0
+P_FLAG = 1e-3
+TREND_T = 3.0  # a between-log difference is called a trend in the order recorded when its slope has |t| >= this
+BETTER_T = 2.0  # the per-block model beats the per-log one with paired t >= this
+
+
+def per_log_name(params) -> str:
+    """The candidate's name in the ranking: ``per-log k,Cd1``."""
+    return "per-log " + ",".join(params)
+
+
+def check_params(names, model) -> tuple:
+    """The base parameters ``names`` of the physical model, or a ValueError naming the unknown ones."""
+    base = [q.name for q in model.param_list if "." not in q.name]
+    unknown = [n for n in names if n not in base]
+    if unknown:
+        raise ValueError(f"--per-log {','.join(unknown)}: not a base parameter of the model (one of "
+                         f"{', '.join(base)})")
+    return tuple(names)
+
+
+def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, chosen=(), floor=None,
+            say=None) -> dict:
+    """The drift section of diagnosis.json (see the module doc) for the chosen model ``final`` (a Fit).
+
+    ``train_starts``: the training open-loop window starts (all of them; sampled per unit here);
+    ``params``: the base parameters fitted per unit (default :data:`~.per_unit.DRIFT_PARAMS`);
+    ``order`` (L,): each log's start time [s] (default: the file order); ``chosen``: the effects the stepwise
+    search put in ``final``, each checked again once the drift is allowed for (``given_drift``: those that
+    no longer pass the verdict's tests are dropped); ``floor``: the noise floor at the reference horizon [mm].
+    """
+    from cosim_plugins.diagnose.fitting import reduction_of  # fitting -> verdict -> this module
+
+    say = say or (lambda msg: None)
+    jm, ttr, tte = final.model, fitter.ttr, fitter.tte
+    names = check_params(params or DRIFT_PARAMS, jm)
+    key, lead, k_ref = fitter.s.reference, fitter.lead, fitter.steps[fitter.s.reference]
+    shared = jm.params()
+    mass = float(jm.host.options.get("mass_mg", 12.4))
+    n_logs = int(ttr.log.max()) + 1
+    how = "file order" if order is None else "t_start"
+    order = np.arange(n_logs, dtype=float) if order is None else np.asarray(order, dtype=float)
+    if len(order) != n_logs:
+        raise ValueError(f"--t-start gives {len(order)} start times for {n_logs} logs")
+    cluster = max(1, int(round(CLUSTER_S / ttr.dt_s)))
+    out = {"params": list(names), "order": how,
+           "flagged": [], "per_log": {}, "t": {}, "words": []}
+
+    def held_out(fit):
+        ev = fit.model.evaluate(tte, fitter.test_starts, lead, fitter.steps)
+        summ = {h: _mean_norm(r) for h, r in ev.items()}
+        return ev, summ, reduction_of(final.summary["rollout_mm"][key], summ[key]), \
+            fitter.paired_t(final.ev[key], ev[key])
+
+    def held_t(fit, quantity, ev_fit):
+        """Paired t of the per-unit model against itself with ``quantity`` held shared (inf: cannot hold it)."""
+        model = held(fit, quantity, shared)
+        if model is None:
+            return float("inf")
+        ev = model.evaluate(tte, fitter.test_starts, lead, {key: fitter.steps[key]})
+        return fitter.paired_t(ev[key], ev_fit[key])
+
+    logs = log_units(ttr)
+    between = within = None
+    if n_logs >= 2:
+        starts = sample_per_unit(train_starts, logs, fitter.s.seed + 5)
+        say(f"drift: {', '.join(names)} free per log ({n_logs} logs, {len(starts)} windows) ...")
+        between = fit_per_unit(jm, ttr, starts, logs, names, lead, k_ref, cluster)
+        ev_log, summ, red, t = held_out(between)
+        q = quantities(between, shared, mass)
+        out["between"] = {"rollout_mm": summ, "reduction": red, "t_stat": t,
+                          "quantities": {n: {**between_logs(x, sd, order), "values": _list(x), "std": _list(sd)}
+                                         for n, (x, sd) in q.items()}}
+        out["per_log"] = {n: _list(between.values[:, j]) for j, n in enumerate(names)}
+        out["t"] = {n: v["slope_t"] for n, v in out["between"]["quantities"].items()}
+        say(f"drift: per log, held-out error at {key} s {summ[key]:.3f} mm ({red:+.1%}, t = {t:.1f})")
+        if red >= MIN_REDUCTION and t >= MIN_T:
+            for n, v in out["between"]["quantities"].items():
+                v["t_held"] = held_t(between, n, ev_log)
+                if v["p"] < P_FLAG and v["t_held"] >= MIN_T:
+                    out["flagged"].append(n)
+                    out["words"].append(_between_words(n, v))
+    blocks = block_units(ttr)
+    if blocks.n > n_logs:
+        starts = sample_per_unit(train_starts, blocks, fitter.s.seed + 6)
+        say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts)} windows) ...")
+        within = fit_per_unit(jm, ttr, starts, blocks, names, lead, k_ref, cluster)
+        ev_block, summ, red, t = held_out(within)
+        vs_log = fitter.paired_t(ev_log[key], ev_block[key]) if between is not None else t
+        q = quantities(within, shared, mass)
+        out["within"] = {"blocks": blocks.n, "rollout_mm": summ, "reduction": red, "t_stat": t,
+                         "t_vs_per_log": vs_log,
+                         "quantities": {n: within_logs(x, sd, blocks.log, blocks.t_s) for n, (x, sd) in q.items()}}
+        say(f"drift: per block, held-out error at {key} s {summ[key]:.3f} mm ({red:+.1%}, t = {t:.1f}; "
+            f"against per log t = {vs_log:.1f})")
+        if red >= MIN_REDUCTION and t >= MIN_T and vs_log >= BETTER_T:
+            for n, v in out["within"]["quantities"].items():
+                v["t_held"] = held_t(within, n, ev_block)
+                if v["p"] < P_FLAG and v["t_held"] >= MIN_T:
+                    out["flagged"].append(f"within:{n}")
+                    out["words"].append(_within_words(n, v))
+    if out["flagged"] and chosen:
+        best = between if any(not f.startswith("within:") for f in out["flagged"]) else within
+        out["given_drift"] = _effects_given_drift(best, fitter, chosen, floor, say)
+    return out
+
+
+def _effects_given_drift(fit, fitter, chosen, floor, say) -> list:
+    """Each chosen effect checked again with the drift in: the drifting model refitted without it, and the
+    verdict's tests of its drop (:func:`~.verdict.passes`). [{"effect", "reduction", "t_stat", "kept"}]."""
+    from cosim_plugins.diagnose.fitting import reduction_of
+    from cosim_plugins.diagnose.verdict import passes
+
+    key = fitter.s.reference
+    drifted = fitter.evaluate(fit.model)
+    out = []
+    for name in chosen:
+        keep = [e for e in fit.model.effects if e.name != name and e not in fitter.added]
+        say(f"drift: is {name} still needed once the drift is in? refitting without it ...")
+        without = fitter.without(drifted, keep)
+        before = without.summary["rollout_mm"][key]
+        entry = {"effect": name, "rollout_mm": drifted.summary["rollout_mm"],
+                 "reduction": reduction_of(before, drifted.summary["rollout_mm"][key]),
+                 "t_stat": fitter.paired_t(without.ev[key], drifted.ev[key])}
+        entry["kept"] = passes(entry, before, floor, key)
+        out.append({k: entry[k] for k in ("effect", "reduction", "t_stat", "kept")})
+    return out
+
+
+def candidate_entry(drift: dict, key: str) -> dict | None:
+    """The ``--per-log`` fit as a ranking entry (effect ``per-log PARAMS``, kind "drift"), None without one."""
+    b = drift.get("between")
+    if not b:
+        return None
+    return {"effect": per_log_name(drift["params"]), "kind": "drift", "rollout_mm": b["rollout_mm"],
+            "reduction": b["reduction"], "reduction_by_horizon": {}, "t_stat": b["t_stat"], "identifiable": True,
+            "params": {}, "fit": {}, "conditioning": {},
+            "doc": f"{', '.join(drift['params'])} fitted free per log, the rest shared"}
+
+
+def sentence(drift: dict, key: str) -> str:
+    """The verdict's words on drift ('' when nothing is flagged)."""
+    if not drift or not drift.get("flagged"):
+        return ""
+    b, w = drift.get("between") or {}, drift.get("within") or {}
+    parts = [("The logs disagree with each other: " if b and any("within:" not in f for f in drift["flagged"])
+              else "The plant drifts within the logs: ") + "; ".join(drift["words"]) + "."]
+    for what, fit in (("per log", b), ("per block of time", w)):
+        if fit and fit["reduction"] >= MIN_REDUCTION and fit["t_stat"] >= MIN_T:
+            parts.append(f"With {', '.join(drift['params'])} free {what}, the held-out error at {key} s falls by "
+                         f"{fit['reduction']:.0%} (to {fit['rollout_mm'][key]:.2f} mm; t = {fit['t_stat']:.1f}).")
+    gone = [g["effect"] for g in drift.get("given_drift", ()) if not g["kept"]]
+    if gone:
+        parts.append(f"{' and '.join(gone)}, which the search chose before, {'is' if len(gone) == 1 else 'are'} "
+                     "not needed once the drift is allowed for.")
+    between_flagged = any(not f.startswith("within:") for f in drift["flagged"])
+    parts.append("Next: look for what changed " + ("between the experiments (water temperature, the swimmer's "
+                 f"insertion, coil heating); --per-log {','.join(drift['params'])} fits them per log."
+                 if between_flagged else "during each experiment (coil heating, water warming, a swimmer "
+                 "wearing); shorter logs, or logs recorded once the rig has settled, avoid it."))
+    return " ".join(parts)
+
+
+def _between_words(name: str, v: dict) -> str:
+    words, unit = QUANTITIES[name][0], QUANTITIES[name][1]
+    vals = [x for x in v["values"] if x is not None]
+    if abs(v["slope_t"]) >= TREND_T:
+        way = "falls" if v["change_per_step"] < 0 else "rises"
+        return (f"{words} {way} {abs(v['change_per_step']):.0%} from log to log, in the order recorded "
+                f"(from {vals[0]:.3g} to {vals[-1]:.3g} {unit}; homogeneity p = {v['p']:.0e})")
+    return (f"{words} differs between logs beyond its uncertainty, not in the order recorded "
+            f"({min(vals):.3g} to {max(vals):.3g} {unit}; homogeneity p = {v['p']:.0e})")
+
+
+def _within_words(name: str, v: dict) -> str:
+    words = QUANTITIES[name][0]
+    way = "falls" if v["change_per_min"] < 0 else "rises"
+    return f"{words} {way} {abs(v['change_per_min']):.1%} per minute within the logs (t = {v['slope_t']:.1f})"
+
+
+def _mean_norm(r: dict) -> float | None:
+    v = r["valid"]
+    return float(np.mean(np.linalg.norm(r["err"][v], axis=1))) if v.any() else None
+
+
+def _list(x) -> list:
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(x, dtype=float)]
