@@ -6,6 +6,7 @@ from __future__ import annotations
 import inspect
 import multiprocessing
 import pickle
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
@@ -65,15 +66,16 @@ class Fitter:
         processes (they inherit this fitter's data; each returns its fit). One process when ``jobs`` is 1, the
         platform cannot fork, or an effect cannot be sent between processes (then each fit runs here)."""
         jobs = min(self.s.jobs, len(effects))
+        what = "quick fits" if quick else "candidate fits"
         if jobs > 1 and "fork" in multiprocessing.get_all_start_methods() and _picklable(effects):
             global _FORKED
             _FORKED = (self, before, list(effects), quick)
             try:
                 with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
-                    return list(pool.map(_with_one, range(len(effects))))
+                    return list(bar(pool.map(_with_one, range(len(effects))), what, len(effects)))
             finally:
                 _FORKED = None
-        return [self.with_effects(before, [e], quick=quick) for e in effects]
+        return [self.with_effects(before, [e], quick=quick) for e in bar(effects, what)]
 
     def refit(self, jm) -> Fit:
         """``jm`` refitted from its own solution (every parameter free, the same budget as a candidate's fit)."""
@@ -113,6 +115,13 @@ class Fitter:
                 "t_stat": self.paired_t(before.ev[key], fit.ev[key]), "identifiable": identifiable,
                 "params": params, "fit": fitted.fit if fitted else {}, "conditioning": jm.conditioning,
                 "doc": effect.doc}
+
+
+def bar(items, what: str, total: int | None = None):
+    """``items`` with a progress bar on stderr when it is a terminal (none in logs, pipes and tests)."""
+    from tqdm import tqdm
+
+    return tqdm(items, desc=what, total=total, file=sys.stderr, leave=False, disable=None, dynamic_ncols=True)
 
 
 _FORKED = None  # (fitter, before, effects, quick) of Fitter.with_each, inherited by its forked workers

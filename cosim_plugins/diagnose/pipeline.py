@@ -37,7 +37,7 @@ from threadpoolctl import threadpool_limits
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose import drift
 from cosim_plugins.diagnose.experiment import Experiment, design_experiment
-from cosim_plugins.diagnose.fitting import Fitter, fit_model, reduction_of, velocity_time_constant
+from cosim_plugins.diagnose.fitting import Fitter, bar, fit_model, reduction_of, velocity_time_constant
 from cosim_plugins.diagnose.localise import localise, window_features
 from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
@@ -47,7 +47,7 @@ from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
 from cosim_plugins.identify.joint import JointModel, OpenLoop, supports_effects
 from cosim_plugins.identify.timeline import Timeline
-from cosim_plugins.raw_log import read_logs
+from cosim_plugins.raw_log import read_log, read_logs
 
 HORIZONS_S = {"0.1": 0.1, "0.2": 0.2, "0.42": 0.42, "1.0": 1.0}
 REFERENCE = "1.0"
@@ -137,8 +137,9 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     added = resolve(s.add, known)
     names = [n for n in (s.candidates if s.candidates is not None else list(known)) if n not in s.add]
     candidates = resolve(names, known)
-    logs = read_logs(list(log_paths))
-    train_logs, test_logs, split = split_logs(logs, read_logs(list(validate_paths)) if validate_paths else None)
+    logs = _read(list(log_paths), "reading logs")
+    validate = _read(list(validate_paths), "reading --validate logs") if validate_paths else None
+    train_logs, test_logs, split = split_logs(logs, validate)
     dtr, dte, dall = Dataset.from_logs(train_logs), Dataset.from_logs(test_logs), Dataset.from_logs(logs)
     ttr, tte, tall = (Timeline.from_dataset(d) for d in (dtr, dte, dall))
     dt = dall.dt_s
@@ -388,6 +389,13 @@ def _sample(starts, n, seed):
     if len(starts) <= n:
         return starts
     return np.sort(np.random.default_rng(seed).choice(starts, n, replace=False))
+
+
+def _read(paths: list, what: str) -> list:
+    """The raw logs, one file at a time, with a progress bar on a terminal."""
+    if not paths:
+        return read_logs(paths)  # its error: no log files given
+    return [read_log(p) for p in bar(paths, what)]
 
 
 def _evenly(starts: np.ndarray, n: int) -> np.ndarray:

@@ -90,7 +90,7 @@ class EquationError:
         """Measured minus predicted positions (initial states eliminated), flattened; zero on unused rows."""
         jm = self.jm
         jm._set(theta)
-        a = self.accelerations(self.tl.effective_commands(jm.inputs, jm.prm))
+        a = self.accelerations(jm.commands(self.tl))
         dt = self.tl.dt_s
         forced = np.zeros(self.y.shape)
         forced[:, 1:] = dt * dt * np.cumsum(np.cumsum(a, axis=1), axis=1)  # p_k - p_0 - k dt v_0

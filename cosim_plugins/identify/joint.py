@@ -134,6 +134,7 @@ class JointModel:
         self.conditioning: dict = {}  # after fit_joint, see conditioning()
         self.window_params: dict = {}  # after fit_joint: the short-window fit's parameters, before any polish
         self.per_unit: UnitOffsets | None = None  # base parameters that differ per log or block of time
+        self._commands = None  # (timeline, input parameters, commands) of :meth:`commands`
         start = {q.name: q.init for q in self.param_list}
         start.update(host.params() if supports_effects(host) else {})
         start.update(base_params or {})
@@ -185,6 +186,18 @@ class JointModel:
             return self.host.predict_t(xt, ut, self.dt_s)
         return self.host.predict(xt.T, ut.T, self.dt_s).T
 
+    def commands(self, tl) -> np.ndarray:
+        """(n, 3) the timeline's commands after this model's input effects, remembered for the last timeline
+        and input parameters (a Jacobian's columns for the other parameters reuse them: on an archive the
+        transforms run over every row)."""
+        key = tuple(self.prm[f"{e.name}.{q.name}"] for e in self.inputs for q in e.params)
+        if self._commands is None or self._commands[0] is not tl or self._commands[1] != key:
+            self._commands = (tl, key, tl.effective_commands(self.inputs, self.prm))
+        return self._commands[2]
+
+    def __getstate__(self):  # sent between processes without the remembered commands (and their timeline)
+        return {**self.__dict__, "_commands": None}
+
     def lookback(self) -> int:
         """Rows before each window the rollouts start at: what the sensor effects read (see the effect doc)."""
         m = 0
@@ -202,7 +215,7 @@ class JointModel:
         commands past a window's usable run are replaced by zeros (callers mask those rows).
         """
         if u_eff is None:
-            u_eff = tl.effective_commands(self.inputs, self.prm)
+            u_eff = self.commands(tl)
         c, w = x0.shape[:2]
         m = self.lookback()
         rows = np.minimum(starts[:, None] + np.arange(-m, length)[None, :], tl.n - 1)

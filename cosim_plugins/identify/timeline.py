@@ -46,11 +46,9 @@ class Timeline:
     def from_dataset(cls, ds) -> "Timeline":
         ok = ds.step_ok.astype(bool)
         n = len(ok)
-        run = np.zeros(n, dtype=np.int64)
-        acc = 0
-        for i in range(n - 1, -1, -1):  # run length of True from each row
-            acc = acc + 1 if ok[i] else 0
-            run[i] = acc
+        # run length of True from each row: the distance to the next False row (or the end)
+        stop = np.where(ok, n, np.arange(n))
+        run = (np.minimum.accumulate(stop[::-1])[::-1] - np.arange(n)).astype(np.int64)
         edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
         segments = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
         t_s, log = _times(ds)
