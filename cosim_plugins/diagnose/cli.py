@@ -2,7 +2,7 @@
 
     cosim diagnose LOG... [--validate LOG...] [--model physical] [--effects-file FILE.py]...
                    [--add EFFECT]... [--save-model PATH.npz] [--effects NAME,...] [--reference S]
-                   [--per-log PARAM,...] [--t-start S,...] [--no-drift] --out DIR
+                   [--per-log PARAM,...] [--t-start S,...] [--no-drift] [--jobs N] --out DIR
 """
 
 from __future__ import annotations

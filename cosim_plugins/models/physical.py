@@ -284,9 +284,10 @@ class PhysicalModel(Model):
             extra = np.maximum(slowing, 0.0) / np.maximum((v_geo * v_geo).sum(0), 1e-12)
             drag = drag + extra
             a += extra * v_geo
-        z = (s * h) * drag
+        z = (s * h) * drag + 1e-300  # exp(-z) = 1 + em and phi1(z) = -em / z, with em = expm1(-z) (z != 0)
+        em = np.expm1(-z)
         out = np.empty_like(x)
-        out[3:] = np.exp(-z) * v + (s * h) * phi1(z) * a
+        out[3:] = (1.0 + em) * v - ((s * h) * em / z) * a
         out[:3] = p + h * out[3:]
         return out
 
