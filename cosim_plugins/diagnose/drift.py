@@ -17,7 +17,13 @@ the sinking speed: :data:`~.per_unit.QUANTITIES`) is *flagged* when
 * its values differ beyond their uncertainty: between logs, the chi-square
   test of their homogeneity gives p < :data:`P_FLAG`; within logs, the
   trend against time within each log gives p < :data:`P_FLAG` and the
-  per-block model also beats the per-log one on held-out data, and
+  per-block model also beats the per-log one on held-out data; the
+  uncertainties are widened by how much blocks of one log scatter beyond
+  them (a Birge ratio: conditions that change from block to block move a
+  fit more than its covariance says),
+* it is large enough to be a change of the plant: between logs, the values'
+  spread beyond their uncertainty is >= :data:`MIN_SPREAD` (relative std);
+  within, the trend changes it by >= :data:`MIN_CHANGE` over a log, and
 * its own variation matters: holding it at its shared value in every unit
   (the other quantities as fitted, :func:`~.per_unit.held`) raises the
   held-out error with paired t >= :data:`MIN_T`. A quantity the logs barely
@@ -49,6 +55,11 @@ from cosim_plugins.diagnose.per_unit import (
 MIN_REDUCTION = 0.05
 MIN_T = 3.0
 P_FLAG = 1e-3
+# the smallest drift flagged: the logs' true values differ by >= 1 % (std), or a trend changes a quantity by
+# >= 2 % over a log. A model's misfit of one path against another moves per-log fits by about 0.5 % (a steady
+# plant, 6 logs, 0.5 % apart, held-out t = 7.5): real, but not a change of the plant.
+MIN_SPREAD = 0.01
+MIN_CHANGE = 0.02
 TREND_T = 3.0  # a between-log difference is called a trend in the order recorded when its slope has |t| >= this
 BETTER_T = 2.0  # the per-block model beats the per-log one with paired t >= this
 
@@ -109,43 +120,47 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
         ev = model.evaluate(tte, fitter.test_starts, lead, {key: fitter.steps[key]})
         return fitter.paired_t(ev[key], ev_fit[key])
 
-    logs = log_units(ttr)
+    logs, blocks = log_units(ttr), block_units(ttr)
+    log_min = float(np.mean([np.nanmax(ttr.t_s[ttr.log == k]) for k in range(n_logs)])) / 60.0  # mean length
     between = within = None
     if n_logs >= 2:
         starts = sample_per_unit(train_starts, logs, fitter.s.seed + 5)
         say(f"drift: {', '.join(names)} free per log ({n_logs} logs, {len(starts)} windows) ...")
         between = fit_per_unit(jm, ttr, starts, logs, names, lead, k_ref, cluster)
+    if blocks.n > n_logs:
+        starts = sample_per_unit(train_starts, blocks, fitter.s.seed + 6)
+        say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts)} windows) ...")
+        within = fit_per_unit(jm, ttr, starts, blocks, names, lead, k_ref, cluster)
+    trends = {}  # within logs, per quantity; their scatter also widens the between-log test
+    if within is not None:
+        ev_block, summ, red, t = held_out(within)
+        trends = {n: within_logs(x, sd, blocks.log, blocks.t_s) for n, (x, sd) in quantities(within, shared,
+                                                                                             mass).items()}
+        out["within"] = {"blocks": blocks.n, "rollout_mm": summ, "reduction": red, "t_stat": t, "quantities": trends}
+    if between is not None:
         ev_log, summ, red, t = held_out(between)
-        q = quantities(between, shared, mass)
-        out["between"] = {"rollout_mm": summ, "reduction": red, "t_stat": t,
-                          "quantities": {n: {**between_logs(x, sd, order), "values": _list(x), "std": _list(sd)}
-                                         for n, (x, sd) in q.items()}}
+        out["between"] = {"rollout_mm": summ, "reduction": red, "t_stat": t, "quantities": {
+            n: {**between_logs(x, sd, order, trends.get(n, {}).get("scatter", 1.0)), "values": _list(x),
+                "std": _list(sd)} for n, (x, sd) in quantities(between, shared, mass).items()}}
         out["per_log"] = {n: _list(between.values[:, j]) for j, n in enumerate(names)}
         out["t"] = {n: v["slope_t"] for n, v in out["between"]["quantities"].items()}
         say(f"drift: per log, held-out error at {key} s {summ[key]:.3f} mm ({red:+.1%}, t = {t:.1f})")
         if red >= MIN_REDUCTION and t >= MIN_T:
             for n, v in out["between"]["quantities"].items():
                 v["t_held"] = held_t(between, n, ev_log)
-                if v["p"] < P_FLAG and v["t_held"] >= MIN_T:
+                if v["p"] < P_FLAG and v["t_held"] >= MIN_T and v["excess_sd"] >= MIN_SPREAD:
                     out["flagged"].append(n)
                     out["words"].append(_between_words(n, v))
-    blocks = block_units(ttr)
-    if blocks.n > n_logs:
-        starts = sample_per_unit(train_starts, blocks, fitter.s.seed + 6)
-        say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts)} windows) ...")
-        within = fit_per_unit(jm, ttr, starts, blocks, names, lead, k_ref, cluster)
-        ev_block, summ, red, t = held_out(within)
-        vs_log = fitter.paired_t(ev_log[key], ev_block[key]) if between is not None else t
-        q = quantities(within, shared, mass)
-        out["within"] = {"blocks": blocks.n, "rollout_mm": summ, "reduction": red, "t_stat": t,
-                         "t_vs_per_log": vs_log,
-                         "quantities": {n: within_logs(x, sd, blocks.log, blocks.t_s) for n, (x, sd) in q.items()}}
-        say(f"drift: per block, held-out error at {key} s {summ[key]:.3f} mm ({red:+.1%}, t = {t:.1f}; "
-            f"against per log t = {vs_log:.1f})")
-        if red >= MIN_REDUCTION and t >= MIN_T and vs_log >= BETTER_T:
-            for n, v in out["within"]["quantities"].items():
+    if within is not None:
+        w = out["within"]
+        w["t_vs_per_log"] = vs_log = fitter.paired_t(ev_log[key], ev_block[key]) if between is not None else w["t_stat"]
+        say(f"drift: per block, held-out error at {key} s {w['rollout_mm'][key]:.3f} mm ({w['reduction']:+.1%}, "
+            f"t = {w['t_stat']:.1f}; against per log t = {vs_log:.1f})")
+        if w["reduction"] >= MIN_REDUCTION and w["t_stat"] >= MIN_T and vs_log >= BETTER_T:
+            for n, v in trends.items():
                 v["t_held"] = held_t(within, n, ev_block)
-                if v["p"] < P_FLAG and v["t_held"] >= MIN_T:
+                v["change_per_log"] = v["change_per_min"] * log_min
+                if v["p"] < P_FLAG and v["t_held"] >= MIN_T and abs(v["change_per_log"]) >= MIN_CHANGE:
                     out["flagged"].append(f"within:{n}")
                     out["words"].append(_within_words(n, v))
     if out["flagged"] and chosen:

@@ -257,32 +257,45 @@ def held(fit: PerUnitFit, quantity: str, shared: dict) -> JointModel | None:
     return model
 
 
-def between_logs(x: np.ndarray, sd: np.ndarray, order: np.ndarray) -> dict:
-    """Homogeneity of per-log values ``x`` (L,) with std ``sd`` (L,) and their trend along ``order`` (L,):
-    {"p" (chi-square of homogeneity), "chi2", "dof", "mean", "slope" per unit of order, "slope_t",
-    "change_per_step" (the trend's relative change between consecutive logs), "spread" (max/min - 1)}."""
+def between_logs(x: np.ndarray, sd: np.ndarray, order: np.ndarray, scatter: float = 1.0) -> dict:
+    """Homogeneity of per-log values ``x`` (L,) with std ``sd`` (L,) and their trend along ``order`` (L,).
+
+    ``scatter`` (>= 1): how much the values of blocks within one log scatter beyond their own uncertainty
+    (:func:`within_logs`): conditions that differ from block to block (paths, speeds) move a per-unit fit
+    more than its covariance says, and the logs differ at least as much for that alone. The chi-square and
+    the trend's t are divided by it (a Birge ratio). Returns {"p" (chi-square of homogeneity), "chi2", "dof",
+    "scatter", "mean", "excess_sd" (the std of the values beyond their uncertainty, relative to the mean: how
+    much the logs' true values differ), "slope" per unit of order, "slope_t", "change_per_step" (the trend's
+    relative change between consecutive logs), "spread" (max/min - 1)}."""
     ok = np.isfinite(x) & np.isfinite(sd) & (sd > 0)
+    scatter = max(float(scatter), 1.0)
     if ok.sum() < 2:
-        return {"p": 1.0, "chi2": 0.0, "dof": 0, "mean": float(np.nanmean(x)) if np.isfinite(x).any() else None,
+        return {"p": 1.0, "chi2": 0.0, "dof": 0, "scatter": scatter, "excess_sd": 0.0,
+                "mean": float(np.nanmean(x)) if np.isfinite(x).any() else None,
                 "slope": 0.0, "slope_t": 0.0, "change_per_step": 0.0, "spread": 0.0}
     x, sd, o = x[ok], sd[ok], order[ok].astype(float)
     w = 1.0 / sd ** 2
     mean = float(np.sum(w * x) / np.sum(w))
-    chi2 = float(np.sum(w * (x - mean) ** 2))
+    chi2 = float(np.sum(w * (x - mean) ** 2)) / scatter
     dof = len(x) - 1
     oc = o - np.sum(w * o) / np.sum(w)
     sxx = float(np.sum(w * oc ** 2))
     slope = float(np.sum(w * oc * (x - mean)) / sxx) if sxx > 0 else 0.0
     step = float(np.median(np.diff(np.sort(o)))) if len(o) > 1 else 1.0
-    return {"p": float(chdtrc(dof, chi2)), "chi2": chi2, "dof": dof, "mean": mean, "slope": slope,
-            "slope_t": slope * math.sqrt(sxx) if sxx > 0 else 0.0,
+    excess = max(float(np.var(x, ddof=1)) - scatter * float(np.mean(sd ** 2)), 0.0)
+    return {"p": float(chdtrc(dof, chi2)), "chi2": chi2, "dof": dof, "scatter": scatter, "mean": mean,
+            "excess_sd": math.sqrt(excess) / abs(mean) if mean else 0.0,
+            "slope": slope, "slope_t": slope * math.sqrt(sxx / scatter) if sxx > 0 else 0.0,
             "change_per_step": slope * step / mean if mean else 0.0,
             "spread": float(np.max(x) / np.min(x) - 1.0) if np.min(x) > 0 else float(np.ptp(x) / abs(mean or 1.0))}
 
 
 def within_logs(x: np.ndarray, sd: np.ndarray, log: np.ndarray, t_s: np.ndarray) -> dict:
-    """Trend of per-block values ``x`` (U,) against time within each log ``t_s`` (U,) [s], each log its own
-    offset: {"slope" per second, "slope_t", "p" (two-sided), "change_per_min" relative to the mean}."""
+    """Trend of per-block values ``x`` (U,) with std ``sd`` (U,) against time within each log ``t_s`` (U,) [s],
+    each log its own offset: {"slope" per second, "slope_t", "p" (two-sided), "change_per_min" relative to the
+    mean, "scatter"}. ``scatter`` is the residuals' Birge ratio, sum w r^2 / (U - logs - 1) (at least 1): how
+    much the blocks scatter about the trend beyond their own uncertainty; the slope's t is divided by its
+    square root."""
     ok = np.isfinite(x) & np.isfinite(sd) & (sd > 0)
     x, sd, log, t = x[ok], sd[ok], log[ok], t_s[ok]
     w = 1.0 / sd ** 2 if len(x) else sd
@@ -292,10 +305,12 @@ def within_logs(x: np.ndarray, sd: np.ndarray, log: np.ndarray, t_s: np.ndarray)
         xc[m] -= np.sum(w[m] * x[m]) / np.sum(w[m])
         tc[m] -= np.sum(w[m] * t[m]) / np.sum(w[m])
     sxx = float(np.sum(w * tc ** 2))
-    if sxx <= 0 or len(x) - len(np.unique(log)) < 2:
-        return {"slope": 0.0, "slope_t": 0.0, "p": 1.0, "change_per_min": 0.0}
+    dof = len(x) - len(np.unique(log)) - 1
+    if sxx <= 0 or dof < 1:
+        return {"slope": 0.0, "slope_t": 0.0, "p": 1.0, "change_per_min": 0.0, "scatter": 1.0}
     slope = float(np.sum(w * tc * xc) / sxx)
-    t_stat = slope * math.sqrt(sxx)
+    scatter = max(float(np.sum(w * (xc - slope * tc) ** 2)) / dof, 1.0)
+    t_stat = slope * math.sqrt(sxx / scatter)
     mean = float(np.sum(w * x) / np.sum(w))
     return {"slope": slope, "slope_t": t_stat, "p": float(2 * ndtr(-abs(t_stat))),
-            "change_per_min": slope * 60.0 / mean if mean else 0.0}
+            "change_per_min": slope * 60.0 / mean if mean else 0.0, "scatter": scatter}
