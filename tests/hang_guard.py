@@ -7,7 +7,8 @@ needs neither the interpreter lock nor a signal handler, so a test blocked in na
 wait, a lock) is ended as surely as a Python loop. The stack goes to
 ``$COSIM_TEST_TIMEOUT_DIR/NAME.txt``, ``NAME`` being the mutant under test (mutmut's
 ``MUTANT_UNDER_TEST``), so a run can tell a hang from a failure; a test that returns in time
-leaves no file. Without the variable, nothing is armed.
+leaves no file. Without the variable, nothing is armed; nor in mutmut's runs that test no mutant (the
+clean run, and the stats run, which traces every call and is several times slower than the tests).
 """
 
 from __future__ import annotations
@@ -17,6 +18,9 @@ import os
 from pathlib import Path
 
 import pytest
+
+#: MUTANT_UNDER_TEST in mutmut's runs that test no mutant (unset: a plain pytest run, armed).
+NO_MUTANT = {"", "stats", "fail", "list_all_tests", "mutant_generation"}
 
 
 def _stack_file(folder: str):
@@ -30,7 +34,7 @@ def _stack_file(folder: str):
 def pytest_runtest_protocol(item, nextitem):
     """Arm the watchdog for one test (set-up, call and teardown); disarm it when the test returns."""
     seconds = float(os.environ.get("COSIM_TEST_TIMEOUT") or 0)
-    if seconds <= 0:
+    if seconds <= 0 or os.environ.get("MUTANT_UNDER_TEST") in NO_MUTANT:
         yield
         return
     folder = os.environ.get("COSIM_TEST_TIMEOUT_DIR")

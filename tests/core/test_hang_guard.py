@@ -47,3 +47,10 @@ def test_a_timeout_of_zero_arms_nothing(tmp_path):
                    COSIM_TEST_TIMEOUT_DIR=str(tmp_path / "hung"))
     assert proc.returncode == 0, proc.stdout
     assert not (tmp_path / "hung").exists()
+
+
+def test_mutmuts_stats_run_is_not_watched(tmp_path):
+    """mutmut's stats run traces every call (several times slower): only runs with a mutant in place are timed."""
+    proc = _pytest(tmp_path, "-k", "test_returns", COSIM_TEST_TIMEOUT="0.05",
+                   COSIM_TEST_TIMEOUT_DIR=str(tmp_path / "hung"), MUTANT_UNDER_TEST="stats")
+    assert proc.returncode == 0, proc.stdout
