@@ -79,7 +79,8 @@ TARGETS = (  # cheap and most dangerous first: a run cut short still has their f
            ("tests/coil_driver/test_coil_visa.py", "tests/coil_driver/test_coil_daq.py", *COIL_TESTS)),
     # the component on its own; test_kf_plant.py (30 s loops with the plant, a minute each here) is left out
     Target("kalman", "cosim_plugins/estimators/kalman.py",
-           ("tests/estimators/test_kf_component.py", "tests/estimators/test_kf_params.py"), timeout_s=120.0),
+           ("tests/estimators/test_kf_component.py", "tests/estimators/test_kf_params.py",
+            "tests/estimators/test_kf_setup.py"), timeout_s=120.0),
 )
 
 #: Survivors that no input the module can receive tells from the original: {mutant: why}.
