@@ -146,7 +146,8 @@ def test_the_fit_matches_the_covariance_recursion(monkeypatch, tau):
 
 def test_the_reported_horizons_stop_at_the_longest_fitted(monkeypatch):
     X0, U0 = window_starts(100)
-    for horizon, expected in ((49, [1, 2, 5, 10, 25, 49]), (50, [1, 2, 5, 10, 25, 50]), (3, [1, 2, 3])):
+    for horizon, expected in ((49, [1, 2, 5, 10, 25, 49]), (50, [1, 2, 5, 10, 25, 50]), (3, [1, 2, 3]),
+                              (60, [1, 2, 5, 10, 25, 50, 60])):
         V = propagated(reference_F(X0, U0, None), np.array([0.01] * 3 + [4.0] * 3), None, horizon)
         given_residuals(monkeypatch, V, X0, U0)
         fit = fit_process_noise(Bent(), object(), R, DT, drift_tau_s=None, horizon=horizon)
@@ -167,7 +168,7 @@ def test_two_finite_horizons_are_enough_one_is_not(monkeypatch):
 
 
 class Drifting:
-    """Logged windows: window i starts at a state of its own and its positions wander with a noise of its own.
+    """Logged windows: window i starts at a state of its own, its positions wander and drift at a speed of its own.
 
     The commands change every step, so the first one of a window is told from the later ones.
     """
@@ -176,7 +177,8 @@ class Drifting:
         self.n = n
         rng = np.random.default_rng(7)
         self.start = rng.uniform(-50, 50, (n, 3))
-        self.walk = np.cumsum(rng.normal(0, 0.1, (n, longest, 3)), axis=1)
+        self.walk = np.cumsum(rng.normal(0, 0.002, (n, longest, 3)), axis=1)
+        self.walk += rng.normal(0, 3.0, (n, 1, 3)) * DT * np.arange(1, longest + 1)[:, None]  # a drift: 3 mm/s rms
 
     def window_index(self, horizon):
         return np.arange(self.n)
@@ -204,11 +206,13 @@ class Resting:
 
 def test_the_defaults_3000_windows_seed_0_horizon_50_and_a_2_s_drift():
     data = Drifting(3001)
-    fit = fit_process_noise(Resting(), data, R, DT)
+    r = np.full(3, 1e-6)  # frames far more precise than the wander, which Q and the drift must then explain
+    fit = fit_process_noise(Resting(), data, r, DT)
     assert fit.windows == 3000 and fit.horizons[-1] == 50
+    assert fit.drift0.min() > 1.0  # the drift is seen: its correlation time matters
     phi = np.exp(-DT / 2.0)
     np.testing.assert_allclose(fit.q[6:], (1 - phi**2) * fit.drift0, rtol=1e-12)
-    same = fit_process_noise(Resting(), data, R, DT, drift_tau_s=2.0, horizon=50, max_windows=3000, seed=0)
+    same = fit_process_noise(Resting(), data, r, DT, drift_tau_s=2.0, horizon=50, max_windows=3000, seed=0)
     np.testing.assert_array_equal(fit.q, same.q)
     np.testing.assert_array_equal(fit.measured_mm, same.measured_mm)
 
@@ -236,7 +240,8 @@ def test_a_diverging_model_gives_nan_residuals_without_a_warning():
     class Exploding(Resting):
         def rollout(self, X0, U, dt_s):
             out = super().rollout(X0, U, dt_s)
-            out[::2, 2:] = np.inf  # every other window blows up after two steps
+            out[::2, 2:] *= 1e200  # every other window blows up after two steps: an overflow
+            out[::2, 2:] *= 1e200
             out[1::4, 3:] = np.nan
             return out
 
