@@ -279,3 +279,25 @@ def test_an_unknown_fault_name_is_refused_naming_the_known_ones():
         Fault("melted", "coil +x")
     assert str(err.value) == f"unknown fault 'melted'; known: {', '.join(FAULT_NAMES)}"
     assert "unsafe_command, thermal_budget, watchdog" in str(err.value)
+
+
+# ---------------------------------------------------------------- which spins get a field
+
+
+def amp(out) -> float:
+    return float(out["coil_voltage_amp"].max())
+
+
+def test_a_spin_exactly_at_f_min_and_a_slow_1_hz_one_are_driven(make_driver):
+    at = make_driver(f_min_hz=2.0).step(0.0, {"omega": spin(2.0)})  # |omega| / 2 pi is exactly 2.0
+    assert amp(at) > 0 and float(at["drive_freq"]) == 2.0
+    slow = make_driver().step(0.0, {"omega": spin(1.0)})
+    assert amp(slow) > 0 and float(slow["drive_freq"]) == 1.0
+
+
+def test_a_1_mt_field_is_driven_and_a_zero_field_is_no_field(make_driver):
+    one = make_driver(field_mT=1.0).step(0.0, {"omega": spin(9.0)})
+    three = make_driver(field_mT=3.0).step(0.0, {"omega": spin(9.0)})
+    np.testing.assert_allclose(three["coil_voltage_amp"], 3.0 * one["coil_voltage_amp"], rtol=1e-9)  # linear in B
+    off = make_driver(field_mT=0.0).step(0.0, {"omega": spin(9.0)})
+    assert amp(off) == 0.0 and float(off["drive_freq"]) == 0.0  # nothing to drive: no frequency either
