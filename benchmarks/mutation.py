@@ -185,6 +185,25 @@ EQUIVALENT: dict[str, str] = {
         'choice(replace=None): None is false, as False is',
     'cosim_plugins.estimators.noise.x_robust_second_moment__mutmut_10':
         'out[j] = None: numpy stores None as NaN in a float array',
+    # kalman.py
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_5':
+        'asarray(omega, dtype=None): the bus delivers float64 arrays',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_7':
+        'asarray(omega) without dtype: the bus delivers float64 arrays',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_12':
+        'asarray(position, dtype=None): the bus delivers float64 arrays',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_14':
+        'asarray(position) without dtype: the bus delivers float64 arrays',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_53':
+        'out[6:10] for out[6:9]: the state has 9 entries, slicing past the last is the same',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_57':
+        'out[3:7] for out[3:6] without drift: the state has 6 entries',
+    'cosim_plugins.estimators.kalman.x__dataset__mutmut_1':
+        "_dataset's default profile: its one caller always passes the scenario's",
+    'cosim_plugins.estimators.kalman.x__dataset__mutmut_2':
+        "_dataset's default profile: its one caller always passes the scenario's",
+    'cosim_plugins.estimators.kalman.x__dataset__mutmut_6':
+        'glob() for a pattern without wildcards too: it returns the name when the file exists, [] when not',
 }
 
 #: mutmut's statuses that count as caught (a failing test, or one that no longer finishes).

@@ -59,6 +59,13 @@ def test_the_first_outputs_are_nothing_seen_and_at_rest(linear_file):
     np.testing.assert_array_equal(out["velocity"], np.zeros(3))
     assert out["innovation"].shape == (3,) and np.isnan(out["innovation"]).all()
     assert out["nis"].shape == () and math.isnan(out["nis"])
+    kf = setup_kf(model=str(linear_file), q_diag=Q9)
+    blind = kf.step(0.0, {"position": np.full(3, np.nan), "omega": np.zeros(3)})  # no frame yet
+    assert np.isnan(blind["position"]).all()
+    np.testing.assert_array_equal(blind["velocity"], np.zeros(3))
+    z = np.array([0.061, -0.047, 0.0123])  # far from the centre: a scale error would show
+    first = kf.step(0.02, {"position": z, "omega": np.zeros(3)})
+    np.testing.assert_allclose(first["position"], z, rtol=0, atol=1e-15)  # the first frame is the estimate
 
 
 def test_artifacts_are_the_model_file_or_nothing_for_a_kind(tmp_path):
@@ -163,6 +170,7 @@ def test_q_logs_are_globbed_in_order_read_once_and_again_when_rewritten(tmp_path
     os.utime(b, ns=(1, 10**18))  # rewritten: another modification time
     again = kalman._dataset([str(b), str(a)])
     assert again is not data and kalman._dataset([str(b), str(a)]) is again
+    assert [log.path for log in again.logs] == [str(b), str(a)]  # every pattern's files, in the order given
     assert len(kalman._DATASETS) == 1  # only the last read is kept
 
 
