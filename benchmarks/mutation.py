@@ -274,7 +274,14 @@ def mutate(target: Target, children: int) -> dict:
         again = [name for name, s in results(work).items() if s not in CAUGHT and before.get(name) == s]
         if again:
             run_mutmut(target, work, children, again, log)
+    return figures(work, time.perf_counter() - t0)
+
+
+def figures(work: Path, seconds: float | None = None) -> dict:
+    """The figures of the mutants tested in ``work`` so far (``untested``: not reached yet, a run cut short)."""
     status = results(work)
+    untested = {name for name, s in status.items() if s == "not checked"}
+    status = {name: s for name, s in status.items() if name not in untested}
     killed = {name for name, s in status.items() if s in CAUGHT}
     hung = {p.stem for p in (work / "hung").glob("*.txt")} & killed
     survived = sorted(set(status) - killed)
@@ -283,7 +290,8 @@ def mutate(target: Target, children: int) -> dict:
     return {"mutants": len(status), "killed": len(killed), "hung": len(hung), "equivalent": len(equivalent),
             "score": round(len(killed) / tested, 3) if tested else None,
             "survived": [name for name in survived if name not in EQUIVALENT],
-            "seconds": round(time.perf_counter() - t0, 1)}
+            **({"untested": len(untested)} if untested else {}),
+            **({"seconds": round(seconds, 1)} if seconds is not None else {})}
 
 
 def main(argv=None) -> int:
@@ -291,8 +299,14 @@ def main(argv=None) -> int:
     parser.add_argument("--only", nargs="+", metavar="NAME", choices=[t.name for t in TARGETS],
                         help="these modules only (names: " + ", ".join(t.name for t in TARGETS) + ")")
     parser.add_argument("--children", type=int, default=2, help="mutants tested at once (default 2)")
+    parser.add_argument("--report", action="store_true",
+                        help="print the figures of the runs so far (build/mutation/NAME/), run nothing")
     args = parser.parse_args(argv)
     targets = [t for t in TARGETS if not args.only or t.name in args.only]
+    if args.report:
+        report = {t.path: figures(WORK / t.name) for t in targets if (WORK / t.name / "mutants").exists()}
+        print(json.dumps({"modules": report}, indent=1))
+        return 0
     WORK.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     modules = {}
