@@ -61,8 +61,10 @@ COIL_TESTS = ("tests/coil_driver/test_coil_interlocks.py", "tests/coil_driver/te
 EKF_TESTS = ("tests/estimators/test_kf_filter.py", "tests/estimators/test_ekf_jacobian.py",
              "tests/estimators/test_ekf_parts.py", "tests/estimators/test_kf_noise.py",
              "tests/estimators/test_kf_noise_parts.py", "tests/estimators/test_kf_noise_fit.py")
-# the loop in one process, delays 0 to 3 on each edge once (each run starts a zenoh session: a second)
-DELAY_TESTS = ("tests/core/test_delays.py", "-k", "reference or one_process and (1-0 or 2-1 or 3-2 or 1-3)")
+# the loop in one process, delays 0 to 3 on each edge once (each run starts a zenoh session: a second), and
+# what a component is given at set-up
+DELAY_TESTS = ("tests/core/test_delays.py", "tests/core/test_component_setup.py",
+               "-k", "reference or one_process and (1-0 or 2-1 or 3-2 or 1-3) or test_component_setup")
 TARGETS = (  # cheap and most dangerous first: a run cut short still has their figures
     Target("interlocks", "cosim_plugins/coil_driver/interlocks.py", COIL_TESTS),
     Target("wiring", "cosim/runtime/wiring.py", ("tests/core/test_wiring.py",)),
