@@ -206,6 +206,23 @@ EQUIVALENT: dict[str, str] = {
         "_dataset's default profile: its one caller always passes the scenario's",
     'cosim_plugins.estimators.kalman.x__dataset__mutmut_6':
         'glob() for a pattern without wildcards too: it returns the name when the file exists, [] when not',
+    # inverse.py
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_latch__mutmut_3':
+        "rotation = '' for None at a trip: the fault stays latched, no later step computes a rotation",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_latch__mutmut_4':
+        'prev_amp = None for zeros at a trip: the fault stays latched, no later step reads it',
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_start_monitor__mutmut_3':
+        "the monitor thread's name: shown in stack dumps only",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_start_monitor__mutmut_6':
+        "the monitor thread's name: shown in stack dumps only",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_start_monitor__mutmut_8':
+        "the monitor thread's name: shown in stack dumps only",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_start_monitor__mutmut_9':
+        "the monitor thread's name: shown in stack dumps only",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_phasors__mutmut_70':
+        'scale <= 1.0: at exactly 1 the voltages are multiplied by 1, which changes no bit',
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_phasors__mutmut_71':
+        'scale < 2.0: limit_scale never exceeds 1, and multiplying by 1 changes no bit',
 }
 
 #: mutmut's statuses that count as caught (a failing test, or one that no longer finishes).

@@ -301,3 +301,12 @@ def test_a_1_mt_field_is_driven_and_a_zero_field_is_no_field(make_driver):
     np.testing.assert_allclose(three["coil_voltage_amp"], 3.0 * one["coil_voltage_amp"], rtol=1e-9)  # linear in B
     off = make_driver(field_mT=0.0).step(0.0, {"omega": spin(9.0)})
     assert amp(off) == 0.0 and float(off["drive_freq"]) == 0.0  # nothing to drive: no frequency either
+
+
+def test_a_steady_spin_keeps_its_phases_in_absolute_time(make_driver):
+    """The coils are driven as cos(2 pi f t + phase): a spin that does not change keeps the same phases, tick
+    after tick, over several turns of 2 pi f t (9 Hz: a turn every 111 ms, so 2 pi f t passes 2 pi, 3 pi...)."""
+    driver = make_driver()
+    outs = [driver.step(0.02 * k, {"omega": spin(9.0, (1.0, 0.5, 0.25))}) for k in range(40)]
+    phasors = np.array([o["coil_voltage_amp"] * np.exp(1j * o["coil_voltage_phase"]) for o in outs])
+    np.testing.assert_allclose(phasors, np.repeat(phasors[:1], 40, axis=0), rtol=0, atol=1e-9 * np.abs(phasors).max())
