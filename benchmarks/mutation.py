@@ -112,8 +112,6 @@ EQUIVALENT: dict[str, str] = {
         "loadtxt(dtype=None): loadtxt's default dtype is float",
     'cosim_plugins.raw_log.x__parse__mutmut_63':
         'loadtxt without dtype: its default is float',
-    'cosim_plugins.raw_log.x__parse__mutmut_60':
-        'loadtxt(ndmin=None): a log has at least 3 rows, so the array is 2-D anyway',
     'cosim_plugins.raw_log.x__parse__mutmut_64':
         'loadtxt without ndmin: a log has at least 3 rows, so the array is 2-D anyway',
     'cosim_plugins.raw_log.x__parse__mutmut_70':
@@ -122,8 +120,6 @@ EQUIVALENT: dict[str, str] = {
         "ValueError('XXshapeXX'): caught two lines below, its text never read",
     'cosim_plugins.raw_log.x__parse__mutmut_72':
         "ValueError('SHAPE'): caught two lines below, its text never read",
-    'cosim_plugins.raw_log.x__parse_slow__mutmut_3':
-        "an 8th column in the slow parser's array: never written, _clean reads 7",
     'cosim_plugins.raw_log.x__parse_slow__mutmut_17':
         'out[i, j] = None: numpy stores None as NaN in a float array',
     'cosim_plugins.raw_log.xǁLogWriterǁ__init____mutmut_6':
