@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hang_guard import pytest_runtest_protocol  # noqa: F401  (a hook: COSIM_TEST_TIMEOUT ends a hung test)
 
 from cosim.contract import plugins
 

@@ -279,3 +279,53 @@ def test_an_unknown_fault_name_is_refused_naming_the_known_ones():
         Fault("melted", "coil +x")
     assert str(err.value) == f"unknown fault 'melted'; known: {', '.join(FAULT_NAMES)}"
     assert "unsafe_command, thermal_budget, watchdog" in str(err.value)
+
+
+# ---------------------------------------------------------------- which spins get a field
+
+
+def amp(out) -> float:
+    return float(out["coil_voltage_amp"].max())
+
+
+def test_a_spin_exactly_at_f_min_and_a_slow_1_hz_one_are_driven(make_driver):
+    at = make_driver(f_min_hz=2.0).step(0.0, {"omega": spin(2.0)})  # |omega| / 2 pi is exactly 2.0
+    assert amp(at) > 0 and float(at["drive_freq"]) == 2.0
+    slow = make_driver().step(0.0, {"omega": spin(1.0)})
+    assert amp(slow) > 0 and float(slow["drive_freq"]) == 1.0
+
+
+def test_a_1_mt_field_is_driven_and_a_zero_field_is_no_field(make_driver):
+    one = make_driver(field_mT=1.0).step(0.0, {"omega": spin(9.0)})
+    three = make_driver(field_mT=3.0).step(0.0, {"omega": spin(9.0)})
+    np.testing.assert_allclose(three["coil_voltage_amp"], 3.0 * one["coil_voltage_amp"], rtol=1e-9)  # linear in B
+    off = make_driver(field_mT=0.0).step(0.0, {"omega": spin(9.0)})
+    assert amp(off) == 0.0 and float(off["drive_freq"]) == 0.0  # nothing to drive: no frequency either
+
+
+def test_a_steady_spin_keeps_its_phases_in_absolute_time(make_driver):
+    """The coils are driven as cos(2 pi f t + phase): a spin that does not change keeps the same phases, tick
+    after tick, over several turns of 2 pi f t (9 Hz: a turn every 111 ms, so 2 pi f t passes 2 pi, 3 pi...)."""
+    driver = make_driver()
+    outs = [driver.step(0.02 * k, {"omega": spin(9.0, (1.0, 0.5, 0.25))}) for k in range(40)]
+    phasors = np.array([o["coil_voltage_amp"] * np.exp(1j * o["coil_voltage_phase"]) for o in outs])
+    np.testing.assert_allclose(phasors, np.repeat(phasors[:1], 40, axis=0), rtol=0, atol=1e-9 * np.abs(phasors).max())
+
+
+def field_at(driver, out, t: float) -> np.ndarray:
+    """The centre field [T] (3,) at time t of the outputs ``out``: coil i driven as amp_i cos(2 pi f t + phase_i)."""
+    from cosim_plugins.coil_driver.actuation import impedance_ohm
+
+    f = float(out["drive_freq"])
+    current = out["coil_voltage_amp"] * np.exp(1j * out["coil_voltage_phase"]) / impedance_ohm(f, *driver.rlc)
+    return np.real(np.linalg.pinv(driver.m_pinv) @ current * np.exp(2j * np.pi * f * t))
+
+
+def test_a_new_spin_rate_starts_where_the_field_points(make_driver):
+    """9 Hz, then 11 Hz about the same axis: at the change the field keeps its direction (the magnet
+    would lose step otherwise); only the rate of its turning changes."""
+    driver = make_driver()
+    old = [driver.step(0.02 * k, {"omega": spin(9.0)}) for k in range(10)][-1]
+    new = driver.step(0.2, {"omega": spin(11.0)})
+    before, after = field_at(driver, old, 0.2), field_at(driver, new, 0.2)
+    assert np.dot(before, after) / (np.linalg.norm(before) * np.linalg.norm(after)) > 0.9999

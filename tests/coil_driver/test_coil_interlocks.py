@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -172,7 +174,7 @@ def test_watchdog_monitor_thread_trips_when_steps_stop(make_driver):
 def test_an_unsafe_command_never_reaches_the_hardware_and_stops_it(make_driver):
     log = []
     reference = RecordingReference(log)
-    driver = make_driver(rig=Rig(reference))
+    driver = make_driver(rig=Rig(reference), watchdog_clock="sim")  # a busy machine's 100 ms must not trip it
     driver.step(0.0, {"omega": spin(8.0)})
     out = driver.step(DT, {"omega": np.array([np.nan, 0.0, 0.0])})
     assert driver.fault.startswith("unsafe_command: unsafe command omega")
@@ -234,3 +236,94 @@ def test_the_rig_page_lists_every_interlock_and_backend_parameter_with_its_defau
                  "c_f", "f_min_hz"}  # the driver's model of the coils, documented in its own module
     assert set(rows) == set(PARAMS) - actuation
     assert {key: yaml.safe_load(text) for key, text in rows.items()} == {key: PARAMS[key].default for key in rows}
+
+
+# ---------------------------------------------------------------- a trip, the monitor, close
+
+
+def _refuse_to_stop():
+    raise RuntimeError("AO task already released")
+
+
+class CountingRig(Rig):
+    """A rig of one recording reference that counts the driver's calls to stop()."""
+
+    def __init__(self, on_stop=None):
+        super().__init__(reference=RecordingReference([], on_stop=on_stop))
+        self.stops = 0
+
+    def stop(self):
+        self.stops += 1
+        return super().stop()
+
+
+def test_a_trip_whose_stop_fails_names_both_and_keeps_the_first_name(make_driver):
+    driver = make_driver(rig=CountingRig(on_stop=_refuse_to_stop), watchdog_clock="sim")
+    driver.step(0.0, {"omega": spin(9.0)})
+    driver.step(0.02, {"omega": np.array([np.nan, 0.0, 0.0])})
+    assert driver.tripped.name == "unsafe_command"
+    assert driver.fault.startswith("unsafe_command: unsafe command omega")
+    assert driver.fault.endswith("; stopping the outputs: daq_error: RuntimeError: AO task already released")
+
+
+def test_a_trip_a_step_reported_is_not_reported_again_at_close(make_driver):
+    driver = make_driver(rig=CountingRig(), watchdog_clock="sim")
+    driver.step(0.0, {"omega": np.array([np.inf, 0.0, 0.0])})
+    reported = driver.fault
+    driver.close()
+    assert driver.fault == reported  # not "(after the last step)": the run saw it at its step
+
+
+class Clock:
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+
+def test_the_monitor_stops_the_rig_once_and_checks_nothing_after_close(make_driver):
+    rig = CountingRig()
+    driver = make_driver(rig=rig, watchdog_clock="wall", watchdog_ticks=5)
+    driver.use_monitor = False  # this test is the monitor: it calls check_watchdog() itself
+    driver.now = clock = Clock()
+    driver.step(0.0, {"omega": spin(9.0)})
+    clock.now += 0.2  # 10 ticks without a command
+    assert driver.check_watchdog().name == "watchdog" and rig.stops == 1
+    clock.now += 1.0
+    assert driver.check_watchdog() is None and rig.stops == 1  # latched: the rig is not stopped again
+
+    rig = CountingRig()
+    closed = make_driver(rig=rig, watchdog_clock="wall", watchdog_ticks=5)
+    closed.use_monitor = False
+    closed.now = clock = Clock()
+    closed.step(0.0, {"omega": spin(9.0)})
+    closed.close()
+    clock.now += 1.0
+    assert closed.check_watchdog() is None and rig.stops == 1 and closed.fault is None
+
+
+NEVER_CLOSED = """
+import sys
+import numpy as np
+sys.path.insert(0, {tests!r})
+from coil_fakes import RecordingReference, spin
+from cosim_plugins.coil_driver.backends import Rig
+from cosim_plugins.coil_driver.inverse import InverseMagnetics
+
+driver = InverseMagnetics()
+driver.setup({{"dt": 0.02, "watchdog_clock": "wall"}}, np.random.default_rng(0), rig=Rig(RecordingReference([])))
+driver.step(0.0, {{"omega": spin(9.0)}})
+assert driver._monitor.is_alive()
+print("leaving without close()")
+"""
+
+
+def test_a_driver_never_closed_does_not_keep_its_process_alive():
+    """The wall-clock monitor is a daemon thread: a script that forgets close() still ends."""
+    script = NEVER_CLOSED.format(tests=str(Path(__file__).parent))
+    try:
+        proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the process did not end: the watchdog monitor kept it alive")
+    assert proc.returncode == 0 and proc.stdout.strip() == "leaving without close()", proc.stderr

@@ -18,30 +18,29 @@ from cosim_plugins.resources import SCENARIOS_DIR
 SCENARIO = SCENARIOS_DIR / "feedback_sweep.yaml"
 
 
-@pytest.fixture(scope="module")
-def plant_run(tmp_path_factory):
-    """30 s of PI on the racetrack with the KF (linear SINDy), frames every 100 ms, no outliers."""
-    out = tmp_path_factory.mktemp("kf_plant")
+def loop_on_plant(out: Path, adapt_rate: float):
+    """30 s of PI on the racetrack with the KF (linear SINDy), frames every 100 ms, no outliers: summary, trace."""
     overrides = ["sweep={}", "duration_s=30", "components.camera.params.interval_s=0.1",
-                 "components.camera.params.outlier_prob=0.0", "components.estimator.params.model=sindy-linear"]
+                 "components.camera.params.outlier_prob=0.0", "components.estimator.params.model=sindy-linear",
+                 f"components.estimator.params.adapt_rate={adapt_rate}"]
     summary = run(RunRequest(SCENARIO, out, overrides, progress=False))
     with np.load(out / "trace.npz") as trace:
         return summary, {k: trace[k] for k in trace.files}
 
 
-def nis_on_plant(out: Path, adapt_rate: float) -> np.ndarray:
-    """NIS of the frames after the first second of a 30 s loop with frames every 100 ms."""
-    overrides = ["sweep={}", "duration_s=30", "components.camera.params.interval_s=0.1",
-                 "components.camera.params.outlier_prob=0.0", "components.estimator.params.model=sindy-linear",
-                 f"components.estimator.params.adapt_rate={adapt_rate}"]
-    run(RunRequest(SCENARIO, out, overrides, progress=False))
-    with np.load(out / "trace.npz") as trace:
-        nis = trace["estimator.nis"]
+def nis_after_the_first_second(trace: dict) -> np.ndarray:
+    nis = trace["estimator.nis"]
     return nis[np.isfinite(nis)][10:]
 
 
-def test_normalised_innovations_are_chi_square_on_plant_data(tmp_path):
-    nis = nis_on_plant(tmp_path, adapt_rate=0.1)  # the default: Q's scale follows the innovations
+@pytest.fixture(scope="module")
+def plant_run(tmp_path_factory):
+    """The loop with the default adaptive Q scale (adapt_rate 0.1)."""
+    return loop_on_plant(tmp_path_factory.mktemp("kf_plant"), adapt_rate=0.1)
+
+
+def test_normalised_innovations_are_chi_square_on_plant_data(plant_run):
+    nis = nis_after_the_first_second(plant_run[1])  # the default: Q's scale follows the innovations
     n = len(nis)
     assert n >= 280
     below = np.mean(nis <= chi2.ppf(0.5, 3))  # binomial(n, 1/2) if NIS ~ chi-square(3): 4-sigma band
@@ -53,7 +52,7 @@ def test_normalised_innovations_are_chi_square_on_plant_data(tmp_path):
 
 def test_q_as_fitted_is_consistent_or_conservative_on_plant_data(tmp_path):
     """The Q fitted on all twelve training paths is a little conservative on the racetrack: never overconfident."""
-    nis = nis_on_plant(tmp_path, adapt_rate=0.0)
+    nis = nis_after_the_first_second(loop_on_plant(tmp_path, adapt_rate=0.0)[1])
     assert 1.5 <= nis.mean() <= chi2.ppf(0.995, 3 * len(nis)) / len(nis)  # at most 2x conservative
     assert np.mean(nis > chi2.ppf(0.95, 3)) <= 0.05
 
