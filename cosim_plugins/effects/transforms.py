@@ -76,6 +76,11 @@ def _sensor_latency(traj, dt_s, prm):
     return traj[:, j0] + f * (traj[:, j0 + 1] - traj[:, j0])  # linear; before row 0 extrapolated
 
 
+def _latency_lookback(prm) -> int:
+    """Rows before a window the latency reads: the delay rounded up."""
+    return math.ceil(prm["delay"] - 1e-9)
+
+
 SENSOR_LATENCY = Effect(
     name="sensor_latency",
     kind="sensor",
@@ -85,7 +90,7 @@ SENSOR_LATENCY = Effect(
         "swimmer was at t_i - delay dt; delay [control periods] is fitted as a fraction or a number of "
         "steps, by linear interpolation along the predicted path.",
     starts=({"delay": 0.5}, {"delay": 1.5}, {"delay": 4.0}),
-    lookback=lambda prm: math.ceil(prm["delay"] - 1e-9),
+    lookback=_latency_lookback,
 )
 
 TRANSFORM_EFFECTS = (ACTUATION_LAG, HEADING_LAG, SENSOR_LATENCY)
