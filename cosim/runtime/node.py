@@ -25,7 +25,8 @@ outputs as the payload (see :func:`cosim.runtime.bus.encode_reply`). Steps are
 reported ``REPLY_BATCH`` at a time, ``{"name", "ticks": [...], "ok": true}``
 with each step's outputs in turn, and whenever the node runs out of credit;
 set-up phases and failures as ``{"name", "tick", "phase", "ok"[, "error",
-"fault"]}`` (a fault with the outputs of its step).
+"fault", "input_ended"]}`` (a fault with the outputs of its step; ``input_ended``: the component's
+replayed input ran out at that tick, which ends the run as it ends in one process).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from pathlib import Path
 
 import zenoh
 
-from cosim.contract.component import ComponentFault
+from cosim.contract.component import ComponentFault, InputEnded
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import Fingerprint, differences, fingerprint
 from cosim.runtime.placement import parse_cpu_list, pin_this_process
@@ -155,6 +156,11 @@ class _Node:
             t = tick * self.dt_s
             try:
                 self.stepper.step(tick, t)
+            except InputEnded as exc:  # its replayed input ran out: the run ends with the ticks before this one
+                self.failed = True
+                self._report()
+                self.reply(tick, error=f"input ended at t = {t:.3f} s: {exc}", input_ended=str(exc))
+                return
             except ComponentFault as exc:  # its outputs (made safe) were published
                 self.failed = True
                 self._report()

@@ -75,6 +75,14 @@ class WriteError(RunError):
         self.component, self.tick, self.phase, self.path = "recording", None, phase, exc.path
 
 
+class NodeInputEnded(InputEnded):
+    """A node's component ran out of its replayed input at ``tick`` (the run ends with the ticks before)."""
+
+    def __init__(self, component: str, message: str, tick: int):
+        super().__init__(message)
+        self.component, self.tick = component, tick
+
+
 class StopRequest:
     """A request to stop the run(s) after the tick under way, and why (set from a signal handler)."""
 
@@ -284,6 +292,9 @@ class RemoteGroup:
                 continue
             name = reply.get("name", "?")
             if not reply.get("ok", False):
+                if phase is None and reply.get("input_ended") is not None and reply.get("tick") is not None:
+                    self._settle(name)  # the others report the ticks before, which the run keeps
+                    raise NodeInputEnded(name, reply["input_ended"], reply["tick"])
                 kind = RunFault if reply.get("fault") else RunError
                 error = kind(name, reply.get("fault") or reply.get("error", "failed"), reply.get("tick"))
                 if phase is None and error.tick is not None:
@@ -564,7 +575,11 @@ class Scheduler:
                 if state.done:  # the watchdog gave up on us
                     return
         except InputEnded as exc:  # a replayed input ran out: the run ends with the ticks before this one
-            self.input_ended = f"{state.pending[0] if state.pending else 'a component'}: {exc}"
+            name = exc.component if isinstance(exc, NodeInputEnded) else \
+                state.pending[0] if state.pending else "a component"
+            self.input_ended = f"{name}: {exc}"
+            if isinstance(exc, NodeInputEnded):  # nodes run ahead: record the ticks every component finished
+                self._catch_up(exc.tick)
             state.tick -= 1
         except PortTimeout as exc:
             self._fail(RunError(exc.component, f"{exc.what} for tick {exc.stamp} never arrived"))
