@@ -41,6 +41,7 @@ from cosim.contract.errors import OutputWriteError, UserError
 from cosim.runtime import bus
 from cosim.runtime.pacing import Pacer
 from cosim.runtime.portcache import PortStore, PortTimeout, expected_stamp
+from cosim.runtime.security_log import SecurityLog
 from cosim.runtime.stepper import Stepper
 from cosim.runtime.wiring import Wiring
 from cosim.scenario.schema import Scenario
@@ -198,15 +199,18 @@ class RemoteGroup:
     reply subscriber; the watchdog wakes it by queueing a failure.
     """
 
-    def __init__(self, session: zenoh.Session, run_id: str, wiring: Wiring, store: PortStore):
+    def __init__(self, session: zenoh.Session, run_id: str, wiring: Wiring, store: PortStore,
+                 security: SecurityLog | None = None):
         self.names = names = wiring.order
+        self.security = security or SecurityLog(None, "scheduler")
         self._store = store
         self._dead: set[str] = set()
         self._tick_pub = bus.publisher(session, bus.tick_key(run_id))
         self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}
         # (header, payload) of every reply; a Python queue, as zenoh's own blocking recv polls
         self._inbox: queue.SimpleQueue[tuple[bytes, bytes]] = queue.SimpleQueue()
-        self.security_events: list[str] = []  # replies dropped by _on_reply
+        self.security_events: list[str] = []  # replies dropped by _on_reply, the nodes' counts
+        self.node_security_events = 0  # the events the nodes noted (reported when they close)
         self._replies = session.declare_subscriber(bus.ctl_key(run_id, "*", "reply"), self._on_reply)
         self._done = {n: -1 for n in names}  # the last tick each node has reported
         self._joined: set[str] = set()  # the nodes that said they were ready (set up, with the run's fingerprint)
@@ -227,6 +231,8 @@ class RemoteGroup:
         except Exception:
             named = None
         if named != sender or sender not in self._cmd_pubs:
+            self.security.event(str(sample.key_expr), f"dropped a reply naming {named!r}, not its key's node",
+                                sender=sender)
             if len(self.security_events) < 100:  # bounded: a flood must not fill the memory
                 self.security_events.append(f"dropped a reply on {sample.key_expr} naming {named!r}")
             return
@@ -421,8 +427,10 @@ class RemoteGroup:
                 continue
             if reply.get("phase") == "closed":
                 if reply.get("security_events"):
-                    self.security_events.append(f"node {reply.get('name')} dropped {reply['security_events']} "
-                                                "sample(s) of its inputs: replayed, repeated or malformed")
+                    self.node_security_events += reply["security_events"]
+                    self.security_events.append(f"node {reply.get('name')} noted {reply['security_events']} "
+                                                "security event(s): attempts refused by access control, samples "
+                                                "replayed, repeated or malformed (security.jsonl)")
                 waiting.discard(reply.get("name"))
                 if reply.get("close_fault"):
                     faults[reply["name"]] = reply["close_fault"]
