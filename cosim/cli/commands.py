@@ -356,13 +356,14 @@ def cmd_node(args) -> int:
 
 
 def cmd_certs(args) -> int:
-    """``cosim certs``: a run's CA and one certificate per host of a hosts file."""
+    """``cosim certs``: a run's CA, one certificate per host of a hosts file and one per placed component."""
     from cosim.scale.certs import make_certificates
 
     if args.days < 1:
         raise UserError(f"--days {args.days}: expected a whole number >= 1")
     files = make_certificates(args.hosts, args.days, args.force)
     print("wrote " + ", ".join(map(str, files)))
-    print(f"copy to each host its own .pem and .key and the CA certificate {files[0]}; keep the CA's key "
+    print(f"copy to each host its own .pem and .key files (its components' too) and the CA certificate "
+          f"{files[0]}; keep the CA's key "
           f"{files[1]} on none of them (it signs certificates that admit a peer to the run)")
     return 0
