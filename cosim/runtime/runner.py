@@ -34,7 +34,7 @@ from cosim.record.summary import run_figures
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
-from cosim.runtime.placement import node_cpus
+from cosim.runtime.placement import node_cpus, threads_started_off
 from cosim.runtime.portcache import PortCache, PortStore
 from cosim.runtime.private_bus import PrivateEndpoints
 from cosim.runtime.scheduler import (
@@ -165,9 +165,11 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     access = access_control(run_id, wiring, rights) if rights else None
     security = SecurityLog(out, "scheduler")
     denials = ZenohDenials(security) if access else None  # what access control refuses, in security.jsonl
+    away = cpus if endpoint and not plan else None  # the scheduler's threads keep off the nodes' CPUs
     try:
-        session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None, access=access) \
-            if endpoint else bus.open_session()
+        with threads_started_off(away):
+            session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None,
+                                       access=access) if endpoint else bus.open_session()
     except BaseException:
         if private is not None:
             private.close()
@@ -187,7 +189,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     wall0 = time.perf_counter()
     try:
         if endpoint:
-            group = RemoteGroup(session, run_id, wiring, cache, security)
+            with threads_started_off(away):  # its subscribers' callback threads
+                group = RemoteGroup(session, run_id, wiring, cache, security)
             expected = fingerprint(scenario, request.scenario_file)
             commands = node_commands(request.scenario_file, request.overrides, wiring.order, run_id, endpoint,
                                      out, expected, cpus, private.endpoint if private else None, plan,
@@ -201,7 +204,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
                 timeout = scenario.components[name].timeout_s or scenario.timeout_s
                 steppers[name] = Stepper(name, setup_component(scenario, wiring, name, out), session, run_id,
                                          wiring, cache, timeout)
-        scheduler = Scheduler(scenario, wiring, group, cache, [recorder], realtime, stop)
+        scheduler = Scheduler(scenario, wiring, group, cache, [recorder], realtime, stop, away)
         with _progress_bar(scenario.n_steps, request.progress, scheduler.pacer) as bar:
             try:
                 completed = scheduler.run(on_progress=bar)

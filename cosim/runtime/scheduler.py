@@ -40,6 +40,7 @@ from cosim.contract.component import ComponentFault, InputEnded
 from cosim.contract.errors import OutputWriteError, UserError
 from cosim.runtime import bus
 from cosim.runtime.pacing import Pacer
+from cosim.runtime.placement import keep_thread_off
 from cosim.runtime.portcache import PortStore, PortTimeout, expected_stamp
 from cosim.runtime.security_log import SecurityLog
 from cosim.runtime.stepper import Stepper
@@ -172,16 +173,19 @@ class LocalGroup:
 #: Ticks a node may run ahead of the tick the scheduler waits for; credits
 #: for the next ``WINDOW`` ticks go out every ``WINDOW // 2`` ticks. Every
 #: credit and report is a message a node handles besides its inputs: at 32,
-#: 0.6 of them per tick in all (at 8: 2.5), which took ~20 % off a tick.
-WINDOW = 32
+#: 0.6 of them per tick in all (at 8: 2.5), which took ~20 % off a tick. At
+#: 128 the nodes go on while the scheduler writes a second's recording (tens of
+#: ms, during which a window of 32 ticks, ~25 ms of nodes' work, ran out).
+WINDOW = 128
 #: A gap this long [s] between two rounds of the watchdog (every 50 ms) means this process itself
 #: did not run (stopped, starved of CPU); nodes that vanish within STALL_BLAME_S [s] after it
 #: took the scheduler for gone, and the scheduler is the one named.
 STALL_S = 2.0
 STALL_BLAME_S = 30.0
 
-#: Steps a node reports in one reply (sooner when it runs out of credit).
-REPLY_BATCH = WINDOW // 2
+#: Steps a node reports in one reply (sooner when it runs out of credit); a node that dies takes
+#: up to this many unreported steps with it.
+REPLY_BATCH = 16
 #: How long a timed-out run waits for the nodes' unreported steps before naming the hung one.
 FLUSH_GRACE_S = 0.25
 #: How long the nodes' links and routes may take to deliver every initial output.
@@ -462,7 +466,7 @@ class Scheduler:
 
     def __init__(self, scenario: Scenario, wiring: Wiring, group: LocalGroup | RemoteGroup,
                  cache: PortStore, observers: list[Observer], realtime_factor: float | None = None,
-                 stop: StopRequest | None = None):
+                 stop: StopRequest | None = None, node_cpus: str | None = None):
         self.scenario, self.wiring, self.group = scenario, wiring, group
         self.cache, self.observers = cache, observers
         self.stop = stop or StopRequest()
@@ -478,6 +482,7 @@ class Scheduler:
         self._flushed: tuple = (None, 0.0)  # (occasion, time) of the watchdog's last flush
         self._stalled_at: float | None = None  # when this process last resumed after not running
         self._stall_s = 0.0  # for how long it had not run
+        self.node_cpus = node_cpus  # the CPUs the nodes run on: the stepping thread keeps off them
 
     def run(self, on_progress: Callable[[int], None] | None = None) -> int:
         """Run the ticks (all, or up to a requested stop); returns the number completed.
@@ -564,6 +569,8 @@ class Scheduler:
     def _work(self) -> None:
         state, dt, order = self.progress, self.scenario.dt_s, self.wiring.order
         periods, pacer = self.wiring.periods, self.pacer
+        if self.node_cpus is not None:
+            keep_thread_off(self.node_cpus)
         try:
             self.group.start(order, state, self._observed_missing)
             n_steps = self.scenario.n_steps  # None: until stopped
