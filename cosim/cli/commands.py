@@ -111,7 +111,8 @@ def add_commands(sub) -> None:
                         "what a peer may publish and subscribe to here")
     p.set_defaults(func=cmd_node)
 
-    p = sub.add_parser("certs", help="make a run's CA and one certificate per host of a HOSTS.yaml (mutual TLS)")
+    p = sub.add_parser("certs", help="make a run's CA, one certificate per host of a HOSTS.yaml and one per "
+                                     "component placed there (mutual TLS)")
     p.add_argument("hosts", type=Path, help="the hosts file; the files go where its tls.ca and hosts.*.cert/key say")
     p.add_argument("--days", type=int, default=365, help="validity of the certificates (default 365)")
     p.add_argument("--force", action="store_true", help="replace existing files")
