@@ -28,6 +28,7 @@ they are counted only, and the count is in ``summary.json``.
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import re
@@ -126,56 +127,101 @@ class SecurityLog:
                 pass
 
 
-_zenoh_log_on = False
+class _StdoutPump:
+    """This process's standard output through a pipe and a thread, installed once: zenoh's access-control
+    lines go to the open :class:`ZenohDenials`' log (or nowhere), every other line goes through as it was.
+    zenoh's logger, set once a process, goes on writing to whatever file descriptor 1 is, so the pump
+    stays for the life of the process; at its exit standard output is put back once every line has gone
+    through (:func:`atexit`)."""
 
-
-class ZenohDenials:
-    """While open, zenoh logs what its access control refuses and those lines become events of ``log``.
-
-    zenoh (Rust) logs to this process's standard output (file descriptor 1);
-    open this before the first zenoh session. Standard output goes through a
-    pipe read by a thread of this process, which passes every other line
-    through unchanged; :meth:`close` (after the session closed) puts standard
-    output back once every line has gone through.
-    """
-
-    def __init__(self, log: SecurityLog):
-        global _zenoh_log_on
+    def __init__(self):
         import zenoh
 
+        self.sink: SecurityLog | None = None
+        self.lock = threading.Lock()
+        self._markers: dict[bytes, threading.Event] = {}  # drain() lines awaited
         sys.stdout.flush()
         read_fd, write_fd = os.pipe()
-        self._out_fd = os.dup(1)
+        self.out_fd = os.dup(1)
         os.dup2(write_fd, 1)
         os.close(write_fd)
-        self._thread = threading.Thread(target=self._pump, args=(read_fd, log), name="cosim-security-log",
-                                        daemon=True)
-        self._thread.start()
-        if not _zenoh_log_on:  # zenoh's logger is set once a process; it writes to whatever fd 1 is
-            directives = [d for d in os.environ.get("RUST_LOG", "error").split(",") if d]
-            os.environ["RUST_LOG"] = ",".join([*directives, ZENOH_DIRECTIVE])
-            zenoh.init_log_from_env_or("error")
-            _zenoh_log_on = True
+        self.thread = threading.Thread(target=self._pump, args=(read_fd,), name="cosim-security-log", daemon=True)
+        self.thread.start()
+        atexit.register(self.restore)
+        directives = [d for d in os.environ.get("RUST_LOG", "error").split(",") if d]
+        os.environ["RUST_LOG"] = ",".join([*directives, ZENOH_DIRECTIVE])
+        zenoh.init_log_from_env_or("error")
 
-    def _pump(self, read_fd: int, log: SecurityLog) -> None:
+    def _pump(self, read_fd: int) -> None:
         parser = DenialParser()
         with os.fdopen(read_fd, "rb") as pipe:
             for raw in iter(pipe.readline, b""):
                 if _TARGET not in raw:  # anything else written to standard output goes through
-                    os.write(self._out_fd, raw)
+                    with self.lock:
+                        seen = self._markers.get(raw)
+                    if seen is not None:
+                        seen.set()
+                    else:
+                        os.write(self.out_fd, raw)
                     continue
                 if b"Using cached result" in raw and b"unauthorized" not in raw:
                     continue  # the bulk of it: a message allowed, as decided before
                 found = parser.feed(raw.decode(errors="replace"))
-                if found is not None:
-                    log.event(found.pop("key"), found.pop("reason"), **found)
+                with self.lock:
+                    sink = self.sink
+                if found is not None and sink is not None:
+                    sink.event(found.pop("key"), found.pop("reason"), **found)
 
-    def close(self) -> None:
-        """Standard output back as it was, once the lines written before have gone through."""
-        if self._out_fd < 0:
+    def drain(self, timeout_s: float = 5.0) -> None:
+        """Wait until every line written to standard output so far has been read: a marker line of
+        this call's own goes through the pipe after them, and the thread says when it reads it."""
+        seen = threading.Event()
+        marker = f"cosim-security-log-drain {id(seen)} {time.monotonic_ns()}\n".encode()
+        with self.lock:
+            self._markers[marker] = seen
+        sys.stdout.flush()
+        try:
+            os.write(1, marker)
+        except OSError:
+            return
+        seen.wait(timeout_s)
+        with self.lock:
+            self._markers.pop(marker, None)
+
+    def restore(self) -> None:
+        """Standard output back as it was (the pipe's last writer goes: the thread reads to its end)."""
+        if self.out_fd < 0:
             return
         sys.stdout.flush()
-        os.dup2(self._out_fd, 1)  # the pipe's last writer goes: the thread reads to its end
-        self._thread.join(timeout=5.0)
-        os.close(self._out_fd)
-        self._out_fd = -1
+        os.dup2(self.out_fd, 1)
+        self.thread.join(timeout=5.0)
+        os.close(self.out_fd)
+        self.out_fd = -1
+
+
+_pump: _StdoutPump | None = None
+
+
+class ZenohDenials:
+    """While open, what zenoh's access control refuses in this process becomes events of ``log``.
+
+    zenoh (Rust) logs to this process's standard output (file descriptor 1);
+    open this before the first zenoh session. Standard output then goes through
+    a pipe read by a thread of this process, which passes every other line
+    through unchanged (see :class:`_StdoutPump`); :meth:`close` (after the
+    session closed) waits until the lines written before have been read.
+    """
+
+    def __init__(self, log: SecurityLog):
+        global _pump
+        if _pump is None:
+            _pump = _StdoutPump()
+        with _pump.lock:
+            _pump.sink = log
+
+    def close(self) -> None:
+        if _pump is None:
+            return
+        _pump.drain()
+        with _pump.lock:
+            _pump.sink = None

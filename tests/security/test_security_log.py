@@ -43,3 +43,31 @@ def test_events_are_json_lines_with_time_key_and_reason_and_a_flood_is_counted_n
     lines = [json.loads(line) for line in (tmp_path / "run" / "security.jsonl").read_text().splitlines()]
     assert log.count == 5 and [e["tick"] for e in lines] == [0, 1, 2]
     assert set(lines[0]) == {"time", "process", "key", "reason", "tick"} and lines[0]["process"] == "node plant"
+
+
+def test_zenohs_refusals_on_standard_output_become_events_and_every_other_line_goes_through(tmp_path):
+    """In a process of its own (the pump takes over file descriptor 1 for the process's life): what the
+    process prints passes through in order, before and after, up to its exit; zenoh's access-control
+    lines do not, and its refusals are logged while a run's log is open."""
+    import subprocess
+    import sys
+
+    zenoh_line = "2026 TRACE rx-0 ThreadId(3) zenoh::net::routing::interceptor::access_control: {}\n"
+    script = f"""
+import os
+from cosim.runtime.security_log import SecurityLog, ZenohDenials
+log = SecurityLog({str(tmp_path)!r}, "scheduler")
+denials = ZenohDenials(log)
+print("first", flush=True)
+os.write(1, {zenoh_line!r}.format("Using cached result: abcd is unauthorized to Put (ingress) on cosim/r/x").encode())
+os.write(1, {zenoh_line!r}.format("Using cached result: abcd is authorized to Put (ingress) on cosim/r/y").encode())
+denials.close()
+print("events", log.count)
+os.write(1, {zenoh_line!r}.format("Access control is disabled").encode())
+print("last")
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "first\nevents 1\nlast\n"
+    (event,) = [json.loads(line) for line in (tmp_path / "security.jsonl").read_text().splitlines()]
+    assert event["key"] == "cosim/r/x" and event["reason"].startswith("refused by access control: peer abcd")
