@@ -10,6 +10,7 @@ writing the files included), ``files_mb`` the size of the run's folder when it e
     .venv/bin/python benchmarks/soak.py                    # 1 h and 12 h in one process, 1 h with --processes
     .venv/bin/python benchmarks/soak.py --hours 0.25       # a shorter check: 15 min each way
     .venv/bin/python benchmarks/soak.py --hours 1 --rotate 0.5 --no-processes
+    .venv/bin/python benchmarks/soak.py --no-one-process --processes-hours 1 12   # --processes, 1 h and 12 h
 """
 
 from __future__ import annotations
@@ -62,8 +63,11 @@ def measure(hours: float, processes: bool, rotate_h: float | None) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, nargs="+", default=[1.0, 12.0],
-                        help="simulated hours of the one-process runs (default 1 12); --processes runs the first")
-    parser.add_argument("--no-processes", action="store_true", help="leave out the --processes run")
+                        help="simulated hours of the one-process runs (default 1 12)")
+    parser.add_argument("--no-processes", action="store_true", help="leave out the --processes runs")
+    parser.add_argument("--processes-hours", type=float, nargs="+", default=None,
+                        help="simulated hours of the --processes runs (default: the first of --hours)")
+    parser.add_argument("--no-one-process", action="store_true", help="leave out the one-process runs")
     parser.add_argument("--rotate", type=float, default=None, metavar="HOURS",
                         help="record in parts (cosim run --rotate)")
     parser.add_argument("--child", type=float, default=None, help=argparse.SUPPRESS)
@@ -73,11 +77,13 @@ def main() -> None:
     if args.child is not None:
         child(args.child, args.processes, args.out, args.rotate)
         return
-    if any(not h > 0 for h in args.hours):
-        parser.error(f"--hours {args.hours}: every value must be > 0")
-    runs = [measure(h, False, args.rotate) for h in args.hours]
+    processes_hours = args.processes_hours or args.hours[:1]
+    for name, hours in (("--hours", args.hours), ("--processes-hours", processes_hours)):
+        if any(not h > 0 for h in hours):
+            parser.error(f"{name} {hours}: every value must be > 0")
+    runs = [] if args.no_one_process else [measure(h, False, args.rotate) for h in args.hours]
     if not args.no_processes:
-        runs.append(measure(args.hours[0], True, args.rotate))
+        runs += [measure(h, True, args.rotate) for h in processes_hours]
     print(json.dumps({"runs": runs}, indent=2))
 
 

@@ -111,7 +111,8 @@ def add_commands(sub) -> None:
                         "what a peer may publish and subscribe to here")
     p.set_defaults(func=cmd_node)
 
-    p = sub.add_parser("certs", help="make a run's CA and one certificate per host of a HOSTS.yaml (mutual TLS)")
+    p = sub.add_parser("certs", help="make a run's CA, one certificate per host of a HOSTS.yaml and one per "
+                                     "component placed there (mutual TLS)")
     p.add_argument("hosts", type=Path, help="the hosts file; the files go where its tls.ca and hosts.*.cert/key say")
     p.add_argument("--days", type=int, default=365, help="validity of the certificates (default 365)")
     p.add_argument("--force", action="store_true", help="replace existing files")
@@ -356,13 +357,14 @@ def cmd_node(args) -> int:
 
 
 def cmd_certs(args) -> int:
-    """``cosim certs``: a run's CA and one certificate per host of a hosts file."""
+    """``cosim certs``: a run's CA, one certificate per host of a hosts file and one per placed component."""
     from cosim.scale.certs import make_certificates
 
     if args.days < 1:
         raise UserError(f"--days {args.days}: expected a whole number >= 1")
     files = make_certificates(args.hosts, args.days, args.force)
     print("wrote " + ", ".join(map(str, files)))
-    print(f"copy to each host its own .pem and .key and the CA certificate {files[0]}; keep the CA's key "
+    print(f"copy to each host its own .pem and .key files (its components' too) and the CA certificate "
+          f"{files[0]}; keep the CA's key "
           f"{files[1]} on none of them (it signs certificates that admit a peer to the run)")
     return 0

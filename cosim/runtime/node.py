@@ -25,7 +25,8 @@ outputs as the payload (see :func:`cosim.runtime.bus.encode_reply`). Steps are
 reported ``REPLY_BATCH`` at a time, ``{"name", "ticks": [...], "ok": true}``
 with each step's outputs in turn, and whenever the node runs out of credit;
 set-up phases and failures as ``{"name", "tick", "phase", "ok"[, "error",
-"fault"]}`` (a fault with the outputs of its step).
+"fault", "input_ended"]}`` (a fault with the outputs of its step; ``input_ended``: the component's
+replayed input ran out at that tick, which ends the run as it ends in one process).
 """
 
 from __future__ import annotations
@@ -38,12 +39,13 @@ from pathlib import Path
 
 import zenoh
 
-from cosim.contract.component import ComponentFault
+from cosim.contract.component import ComponentFault, InputEnded
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import Fingerprint, differences, fingerprint
 from cosim.runtime.placement import parse_cpu_list, pin_this_process
-from cosim.runtime.portcache import PortStore, expected_stamp
+from cosim.runtime.portcache import PortStore
 from cosim.runtime.scheduler import REPLY_BATCH, WINDOW
+from cosim.runtime.security_log import SecurityLog, ZenohDenials
 from cosim.runtime.stepper import Stepper, setup_component
 from cosim.runtime.wiring import Wiring
 from cosim.scenario.schema import Scenario
@@ -63,7 +65,7 @@ class _Node:
     """
 
     def __init__(self, stepper: Stepper, store: PortStore, edges: list[tuple[str, str, int, int]],
-                 period: int, dt_s: float, reply):
+                 period: int, dt_s: float, reply, security: SecurityLog | None = None, run_id: str = ""):
         self.stepper, self.store, self.edges = stepper, store, edges
         self.period, self.dt_s, self.reply = period, dt_s, reply
         self.lock = threading.Lock()
@@ -76,34 +78,47 @@ class _Node:
         self.done_values: list = []
         self.done_lock = threading.Lock()  # held briefly: a flush reports even past a hung step
         self.periods = {src: per for src, _, per, _ in edges}
+        #: (rows kept of the producer, its period, the edge's delay) of each input: what a tick waits for
+        self._needs = [(store.rows_of(src), per, delay) for src, _, per, delay in edges]
         self.accepted: dict[str, int] = {}  # per producer, the last tick whose outputs were accepted
-        self.security_events = 0  # samples dropped by on_data
+        self.initial: dict[str, bytes] = {}  # per producer, the initial outputs accepted
+        self.security_events = 0  # samples and commands dropped
+        self.security = security or SecurityLog(None, "node")
+        self.run_id = run_id
 
     def on_data(self, producer: str, sample: zenoh.Sample) -> None:
         """A step's outputs of ``producer``, accepted once per tick: a producer steps its ticks in order,
         so a stamp not past the last one accepted (a replay, a second sample for a tick), one off the
-        producer's period, or a payload of the wrong size is dropped and reported as a security event."""
+        producer's period, or a payload of the wrong size is dropped and reported as a security event.
+        The initial outputs (tick -1) sent again, the same bytes, are not: set-up repeats them until
+        every route has delivered one."""
         try:
             tick = bus.decode_tick(sample.attachment.to_bytes())
         except Exception:  # no or a malformed stamp
             tick = None
+        payload = sample.payload.to_bytes()
         with self.lock:
             last = self.accepted.get(producer, -2)
-            period = self.periods.get(producer, 1)
-            if tick is None or tick <= last or (tick != -1 and tick % period):
+            if tick == -1 == last and payload == self.initial.get(producer):
+                return
+            if tick is None or tick <= last or (tick != -1 and tick % self.periods.get(producer, 1)):
                 self._rejected(producer, tick, "a stamp already accepted or out of order" if tick is not None
                                else "no tick stamp")
                 return
             try:
-                self.store.store_payload(producer, [tick], sample.payload.to_bytes())
+                self.store.store_payload(producer, [tick], payload)
             except ValueError as exc:
                 self._rejected(producer, tick, str(exc))
                 return
             self.accepted[producer] = tick
+            if tick == -1:
+                self.initial[producer] = payload
             self._advance()
 
     def _rejected(self, producer: str, tick, why: str) -> None:
         self.security_events += 1
+        self.security.event(bus.outputs_key(self.run_id, producer), f"dropped a sample for tick {tick}: {why}",
+                            tick=tick)
         if self.security_events <= 10:  # bounded: a flood must not fill the log
             print(f"cosim node: security: dropped a sample of {producer}'s outputs for tick {tick}: {why}",
                   file=sys.stderr, flush=True)
@@ -120,7 +135,14 @@ class _Node:
                 self._advance()
 
     def on_cmd(self, sample: zenoh.Sample) -> None:
-        cmd = bus.decode_json(sample.payload.to_bytes())["cmd"]
+        try:
+            cmd = bus.decode_json(sample.payload.to_bytes())["cmd"]
+        except Exception:  # not a command at all
+            cmd = None
+        if cmd not in ("stop", "flush", "init"):
+            self.security_events += 1
+            self.security.event(str(sample.key_expr), "dropped a command that is none of stop, flush, init")
+            return
         if cmd == "stop":  # stop and flush not under the lock: a hung step holds it
             self.stopped.set()
         elif cmd == "flush":
@@ -132,7 +154,11 @@ class _Node:
                 self.reply(-1, "init", values=self.stepper.last_outputs)
 
     def _inputs_ready(self, tick: int) -> bool:
-        return all(self.store.has(src, expected_stamp(tick, per, delay)) for src, _, per, delay in self.edges)
+        for rows, per, delay in self._needs:  # runs for every tick and hop: expected_stamp inlined
+            k = tick - delay
+            if (-1 if k < 0 else k - k % per) not in rows:
+                return False
+        return True
 
     def _report(self, phase: str | None = None) -> None:
         """Reply with the steps not reported yet (a ``flush`` reply even with none)."""
@@ -155,6 +181,11 @@ class _Node:
             t = tick * self.dt_s
             try:
                 self.stepper.step(tick, t)
+            except InputEnded as exc:  # its replayed input ran out: the run ends with the ticks before this one
+                self.failed = True
+                self._report()
+                self.reply(tick, error=f"input ended at t = {t:.3f} s: {exc}", input_ended=str(exc))
+                return
             except ComponentFault as exc:  # its outputs (made safe) were published
                 self.failed = True
                 self._report()
@@ -188,7 +219,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     ``expected``: the run's fingerprint: with another of its own the node refuses to join
     (exit status 2); ``tls``: this host's files for mutual TLS with the run's other machines;
     ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint);
-    ``rights``: with ``tls``, the run's per-host rights (:class:`cosim.scale.rights.Rights`), which this
+    ``rights``: with ``tls``, the run's per-component rights (:class:`cosim.scale.rights.Rights`), which this
     node's session enforces on what its peers send it.
     """
     if cpus is not None:
@@ -196,11 +227,25 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     if tls is not None:
         tls.check(f"cosim node {name}")
     mine = fingerprint(scenario, scenario_file or Path("."))
-    access = None
+    access = denials = None
+    security = SecurityLog(run_dir, f"node {name}")
     if rights is not None:
         from cosim.scale.rights import access_control
 
         access = access_control(run_id, wiring, rights)
+        denials = ZenohDenials(security)  # what access control refuses here goes to the run's security.jsonl
+    try:
+        return _serve(scenario, wiring, name, run_id, connect, listen, cpus, run_dir, expected, tls, access,
+                      security, mine)
+    finally:
+        if denials is not None:
+            denials.close()
+
+
+def _serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str], listen: list[str],
+           cpus: str | None, run_dir: Path | None, expected: Fingerprint | None, tls: bus.TlsFiles | None,
+           access: dict | None, security: SecurityLog, mine: Fingerprint) -> int:
+    """:func:`serve` once its security log is set up (``access``: zenoh's access control, or None)."""
     session = bus.open_session(listen=listen, connect=connect, tls=tls, access=access)
     reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
     edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
@@ -243,7 +288,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     producers = {src: wiring.outputs[src] for src, _, _, _ in edges}
     store = PortStore(producers, keep=WINDOW + 1 + max(wiring.max_delay(name), 1))
     stepper = Stepper(name, component, session, run_id, wiring, store, timeout_s)
-    node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply)
+    node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply, security, run_id)
     subs = [session.declare_subscriber(bus.outputs_key(run_id, src), lambda s, src=src: node.on_data(src, s))
             for src in producers]
     subs.append(session.declare_subscriber(bus.tick_key(run_id), node.on_tick))
@@ -282,7 +327,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
         for sub in subs:
             sub.undeclare()
         if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
-            reply(-1, "closed", close_fault=stepper.close(), security_events=node.security_events)
+            reply(-1, "closed", close_fault=stepper.close(), security_events=security.count)
         token.undeclare()  # after the reply: the scheduler waits for it while the node lives
         session.close()
     return status

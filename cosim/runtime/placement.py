@@ -11,11 +11,16 @@ nodes run under ``SCHED_BATCH``: a node woken by a message does not preempt
 the node that sent it, it runs once the sender has finished its step.
 
 ``none`` leaves placement to the operating system; a CPU list (``1``,
-``0,2-3``) puts every node on those CPUs.
+``0,2-3``) puts every node on those CPUs. The scheduler's threads (its
+stepping thread, which records the run: tens of ms of work every second,
+and its zenoh threads, which take the nodes' replies) keep off the nodes'
+CPUs when there are others (:func:`keep_thread_off`, :func:`threads_started_off`):
+on theirs they would preempt the node whose output the others wait for.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 
@@ -70,3 +75,32 @@ def pin_this_process(cpu_list: str) -> None:
             continue
         except OSError as exc:
             raise UserError(f"--cpus {cpu_list}: {exc.strerror}") from None
+
+
+def keep_thread_off(cpu_list: str) -> bool:
+    """Run the calling thread (and the threads it starts) on the CPUs this process may use other than
+    ``cpu_list``; False, and nothing changed, when no other CPU is left or placement is not supported."""
+    available = _available()
+    if available is None:
+        return False
+    others = available - parse_cpu_list(cpu_list)
+    if not others:
+        return False
+    try:
+        os.sched_setaffinity(0, others)  # 0: the calling thread only (Linux affinity is per thread)
+    except OSError:
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def threads_started_off(cpu_list: str | None):
+    """The threads started inside (by zenoh, say) keep off ``cpu_list`` (see :func:`keep_thread_off`);
+    the calling thread is back where it was on exit. ``cpu_list`` None: nothing changes."""
+    before = _available() if cpu_list is not None else None
+    moved = before is not None and keep_thread_off(cpu_list)
+    try:
+        yield
+    finally:
+        if moved:
+            os.sched_setaffinity(0, before)

@@ -56,6 +56,9 @@ class PortStore:
         flat, size = np.frombuffer(payload, dtype="<f8"), self._sizes[comp]
         if flat.size != len(ticks) * size:
             raise ValueError(f"{comp}: payload holds {flat.size} values, expected {len(ticks)} x {size}")
+        if len(ticks) == 1:  # a node's input, every hop: the row is the payload
+            self.store(comp, ticks[0], flat)
+            return
         for i, tick in enumerate(ticks):
             self.store(comp, tick, flat[i * size:(i + 1) * size])
 
@@ -69,6 +72,12 @@ class PortStore:
 
     def has(self, comp: str, stamp: int) -> bool:
         return stamp in self._rows[comp]
+
+    def rows_of(self, comp: str) -> dict[int, np.ndarray]:
+        """``comp``'s rows by tick stamp, the store's own dict (read it, never change it): a test of a stamp
+        in it is what :meth:`has` does, without the call (a plain store; a :class:`PortCache` fills it
+        only when asked)."""
+        return self._rows[comp]
 
     def row(self, comp: str, stamp: int, timeout_s: float = 0.0) -> np.ndarray:
         """``comp``'s outputs produced at tick ``stamp``, flat (a plain store does not wait)."""

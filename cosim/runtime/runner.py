@@ -34,7 +34,7 @@ from cosim.record.summary import run_figures
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
-from cosim.runtime.placement import node_cpus
+from cosim.runtime.placement import node_cpus, threads_started_off
 from cosim.runtime.portcache import PortCache, PortStore
 from cosim.runtime.private_bus import PrivateEndpoints
 from cosim.runtime.scheduler import (
@@ -48,6 +48,8 @@ from cosim.runtime.scheduler import (
     WriteError,
     with_close_faults,
 )
+from cosim.runtime.security_log import FILE_NAME as SECURITY_FILE
+from cosim.runtime.security_log import SecurityLog, ZenohDenials
 from cosim.runtime.stepper import Stepper, setup_component
 from cosim.runtime.wiring import build_wiring
 from cosim.scale.hosts import load_hosts
@@ -161,12 +163,18 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     endpoint = (plan.scheduler_listen if plan else private.endpoint("scheduler")) if request.processes else None
     rights = rights_of(plan) if plan and plan.scheduler_tls else None  # TLS: rights by certificate name
     access = access_control(run_id, wiring, rights) if rights else None
+    security = SecurityLog(out, "scheduler")
+    denials = ZenohDenials(security) if access else None  # what access control refuses, in security.jsonl
+    away = cpus if endpoint and not plan else None  # the scheduler's threads keep off the nodes' CPUs
     try:
-        session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None, access=access) \
-            if endpoint else bus.open_session()
+        with threads_started_off(away):
+            session = bus.open_session(listen=[endpoint], tls=plan.scheduler_tls if plan else None,
+                                       access=access) if endpoint else bus.open_session()
     except BaseException:
         if private is not None:
             private.close()
+        if denials is not None:
+            denials.close()
         raise
     # in one process the scheduler reads every port off the bus; nodes' replies carry their outputs
     # rows kept per producer: a consumer over a delay of d ticks reads d rows back, behind producers up to
@@ -181,7 +189,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     wall0 = time.perf_counter()
     try:
         if endpoint:
-            group = RemoteGroup(session, run_id, wiring, cache)
+            with threads_started_off(away):  # its subscribers' callback threads
+                group = RemoteGroup(session, run_id, wiring, cache, security)
             expected = fingerprint(scenario, request.scenario_file)
             commands = node_commands(request.scenario_file, request.overrides, wiring.order, run_id, endpoint,
                                      out, expected, cpus, private.endpoint if private else None, plan,
@@ -195,7 +204,7 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
                 timeout = scenario.components[name].timeout_s or scenario.timeout_s
                 steppers[name] = Stepper(name, setup_component(scenario, wiring, name, out), session, run_id,
                                          wiring, cache, timeout)
-        scheduler = Scheduler(scenario, wiring, group, cache, [recorder], realtime, stop)
+        scheduler = Scheduler(scenario, wiring, group, cache, [recorder], realtime, stop, away)
         with _progress_bar(scenario.n_steps, request.progress, scheduler.pacer) as bar:
             try:
                 completed = scheduler.run(on_progress=bar)
@@ -214,6 +223,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
         if isinstance(cache, PortCache):
             cache.close()
         session.close()
+        if denials is not None:
+            denials.close()
         if private is not None:
             private.close()
     total_wall = time.perf_counter() - wall0
@@ -232,6 +243,10 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
         summary["realtime"] = scheduler.pacer.summary()
     if getattr(group, "security_events", None):  # samples and replies dropped as not the rightful publisher's
         summary["security_events"] = group.security_events[:20]
+    events = security.count + getattr(group, "node_security_events", 0)
+    if events:  # every one with its time, key and reason in security.jsonl (see cosim.runtime.security_log)
+        summary["security_event_count"] = events
+        summary["security_log"] = SECURITY_FILE
     write_json(out / "summary.json", summary)
     if isinstance(error, WriteError):  # one line naming the file, not a component
         raise error

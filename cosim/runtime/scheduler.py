@@ -40,7 +40,9 @@ from cosim.contract.component import ComponentFault, InputEnded
 from cosim.contract.errors import OutputWriteError, UserError
 from cosim.runtime import bus
 from cosim.runtime.pacing import Pacer
+from cosim.runtime.placement import keep_thread_off
 from cosim.runtime.portcache import PortStore, PortTimeout, expected_stamp
+from cosim.runtime.security_log import SecurityLog
 from cosim.runtime.stepper import Stepper
 from cosim.runtime.wiring import Wiring
 from cosim.scenario.schema import Scenario
@@ -73,6 +75,14 @@ class WriteError(RunError):
         at = f" at t = {t_s:.3f} s" if t_s is not None else ""
         UserError.__init__(self, f"{exc} (the run stopped{at}, while {phase}; what was written before is kept)")
         self.component, self.tick, self.phase, self.path = "recording", None, phase, exc.path
+
+
+class NodeInputEnded(InputEnded):
+    """A node's component ran out of its replayed input at ``tick`` (the run ends with the ticks before)."""
+
+    def __init__(self, component: str, message: str, tick: int):
+        super().__init__(message)
+        self.component, self.tick = component, tick
 
 
 class StopRequest:
@@ -163,16 +173,19 @@ class LocalGroup:
 #: Ticks a node may run ahead of the tick the scheduler waits for; credits
 #: for the next ``WINDOW`` ticks go out every ``WINDOW // 2`` ticks. Every
 #: credit and report is a message a node handles besides its inputs: at 32,
-#: 0.6 of them per tick in all (at 8: 2.5), which took ~20 % off a tick.
-WINDOW = 32
+#: 0.6 of them per tick in all (at 8: 2.5), which took ~20 % off a tick. At
+#: 128 the nodes go on while the scheduler writes a second's recording (tens of
+#: ms, during which a window of 32 ticks, ~25 ms of nodes' work, ran out).
+WINDOW = 128
 #: A gap this long [s] between two rounds of the watchdog (every 50 ms) means this process itself
 #: did not run (stopped, starved of CPU); nodes that vanish within STALL_BLAME_S [s] after it
 #: took the scheduler for gone, and the scheduler is the one named.
 STALL_S = 2.0
 STALL_BLAME_S = 30.0
 
-#: Steps a node reports in one reply (sooner when it runs out of credit).
-REPLY_BATCH = WINDOW // 2
+#: Steps a node reports in one reply (sooner when it runs out of credit); a node that dies takes
+#: up to this many unreported steps with it.
+REPLY_BATCH = 16
 #: How long a timed-out run waits for the nodes' unreported steps before naming the hung one.
 FLUSH_GRACE_S = 0.25
 #: How long the nodes' links and routes may take to deliver every initial output.
@@ -190,15 +203,18 @@ class RemoteGroup:
     reply subscriber; the watchdog wakes it by queueing a failure.
     """
 
-    def __init__(self, session: zenoh.Session, run_id: str, wiring: Wiring, store: PortStore):
+    def __init__(self, session: zenoh.Session, run_id: str, wiring: Wiring, store: PortStore,
+                 security: SecurityLog | None = None):
         self.names = names = wiring.order
+        self.security = security or SecurityLog(None, "scheduler")
         self._store = store
         self._dead: set[str] = set()
         self._tick_pub = bus.publisher(session, bus.tick_key(run_id))
         self._cmd_pubs = {n: bus.publisher(session, bus.ctl_key(run_id, n, "cmd")) for n in names}
         # (header, payload) of every reply; a Python queue, as zenoh's own blocking recv polls
         self._inbox: queue.SimpleQueue[tuple[bytes, bytes]] = queue.SimpleQueue()
-        self.security_events: list[str] = []  # replies dropped by _on_reply
+        self.security_events: list[str] = []  # replies dropped by _on_reply, the nodes' counts
+        self.node_security_events = 0  # the events the nodes noted (reported when they close)
         self._replies = session.declare_subscriber(bus.ctl_key(run_id, "*", "reply"), self._on_reply)
         self._done = {n: -1 for n in names}  # the last tick each node has reported
         self._joined: set[str] = set()  # the nodes that said they were ready (set up, with the run's fingerprint)
@@ -219,6 +235,8 @@ class RemoteGroup:
         except Exception:
             named = None
         if named != sender or sender not in self._cmd_pubs:
+            self.security.event(str(sample.key_expr), f"dropped a reply naming {named!r}, not its key's node",
+                                sender=sender)
             if len(self.security_events) < 100:  # bounded: a flood must not fill the memory
                 self.security_events.append(f"dropped a reply on {sample.key_expr} naming {named!r}")
             return
@@ -284,6 +302,9 @@ class RemoteGroup:
                 continue
             name = reply.get("name", "?")
             if not reply.get("ok", False):
+                if phase is None and reply.get("input_ended") is not None and reply.get("tick") is not None:
+                    self._settle(name)  # the others report the ticks before, which the run keeps
+                    raise NodeInputEnded(name, reply["input_ended"], reply["tick"])
                 kind = RunFault if reply.get("fault") else RunError
                 error = kind(name, reply.get("fault") or reply.get("error", "failed"), reply.get("tick"))
                 if phase is None and error.tick is not None:
@@ -410,8 +431,10 @@ class RemoteGroup:
                 continue
             if reply.get("phase") == "closed":
                 if reply.get("security_events"):
-                    self.security_events.append(f"node {reply.get('name')} dropped {reply['security_events']} "
-                                                "sample(s) of its inputs: replayed, repeated or malformed")
+                    self.node_security_events += reply["security_events"]
+                    self.security_events.append(f"node {reply.get('name')} noted {reply['security_events']} "
+                                                "security event(s): attempts refused by access control, samples "
+                                                "replayed, repeated or malformed (security.jsonl)")
                 waiting.discard(reply.get("name"))
                 if reply.get("close_fault"):
                     faults[reply["name"]] = reply["close_fault"]
@@ -443,7 +466,7 @@ class Scheduler:
 
     def __init__(self, scenario: Scenario, wiring: Wiring, group: LocalGroup | RemoteGroup,
                  cache: PortStore, observers: list[Observer], realtime_factor: float | None = None,
-                 stop: StopRequest | None = None):
+                 stop: StopRequest | None = None, node_cpus: str | None = None):
         self.scenario, self.wiring, self.group = scenario, wiring, group
         self.cache, self.observers = cache, observers
         self.stop = stop or StopRequest()
@@ -459,6 +482,7 @@ class Scheduler:
         self._flushed: tuple = (None, 0.0)  # (occasion, time) of the watchdog's last flush
         self._stalled_at: float | None = None  # when this process last resumed after not running
         self._stall_s = 0.0  # for how long it had not run
+        self.node_cpus = node_cpus  # the CPUs the nodes run on: the stepping thread keeps off them
 
     def run(self, on_progress: Callable[[int], None] | None = None) -> int:
         """Run the ticks (all, or up to a requested stop); returns the number completed.
@@ -545,6 +569,8 @@ class Scheduler:
     def _work(self) -> None:
         state, dt, order = self.progress, self.scenario.dt_s, self.wiring.order
         periods, pacer = self.wiring.periods, self.pacer
+        if self.node_cpus is not None:
+            keep_thread_off(self.node_cpus)
         try:
             self.group.start(order, state, self._observed_missing)
             n_steps = self.scenario.n_steps  # None: until stopped
@@ -564,7 +590,11 @@ class Scheduler:
                 if state.done:  # the watchdog gave up on us
                     return
         except InputEnded as exc:  # a replayed input ran out: the run ends with the ticks before this one
-            self.input_ended = f"{state.pending[0] if state.pending else 'a component'}: {exc}"
+            name = exc.component if isinstance(exc, NodeInputEnded) else \
+                state.pending[0] if state.pending else "a component"
+            self.input_ended = f"{name}: {exc}"
+            if isinstance(exc, NodeInputEnded):  # nodes run ahead: record the ticks every component finished
+                self._catch_up(exc.tick)
             state.tick -= 1
         except PortTimeout as exc:
             self._fail(RunError(exc.component, f"{exc.what} for tick {exc.stamp} never arrived"))

@@ -93,8 +93,13 @@ class Stepper:
             got = sorted(outputs or {})
             raise ComponentError(f"returned ports {got}, expected {sorted(self._ports)}")
         row = np.empty(self._size)
-        for port, shape, start, end in self._slots:
-            value = np.asarray(outputs[port], dtype=float)
+        for port, shape, start, end in self._slots:  # every step of every component: no call it can spare
+            value = outputs[port]
+            if type(value) is float and not shape:  # a scalar port's Python float, as it comes
+                row[start] = value
+                continue
+            if type(value) is not np.ndarray or value.dtype != np.float64:
+                value = np.asarray(value, dtype=float)
             if value.shape != shape:
                 raise ComponentError(f"output {port!r} has shape {value.shape}, declared {shape}")
             row[start:end] = value if value.ndim < 2 else value.reshape(-1)

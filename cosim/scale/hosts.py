@@ -24,9 +24,13 @@ is this machine; a component not listed runs here too, on a free port. A
 run whose components are on more than one host must use ``tls/`` endpoints
 with the run's certificates (mutual TLS), so no other host on the network
 can join it or publish to its keys; a ``tcp/`` endpoint is refused beyond
-loopback. With TLS every process also enforces each host's rights, by its
-certificate's name (:mod:`cosim.scale.rights`). Errors name the file, the field and its
-line.
+loopback. With TLS every component placed under ``components:`` has a
+certificate of its own (``cosim certs`` writes ``certs/lab.driver.pem`` and
+``.key`` beside its host's ``certs/lab.pem``, named ``driver@lab``), and every
+process enforces each certificate's rights by its name
+(:mod:`cosim.scale.rights`): a component's own keys only. The components not
+placed there run on the scheduler's machine under its certificate. Errors name
+the file, the field and its line.
 """
 
 from __future__ import annotations
@@ -96,7 +100,9 @@ class HostsFile(_Strict):
 
 @dataclass(frozen=True)
 class NodePlace:
-    """Where one component's node runs and how it starts."""
+    """Where one component's node runs and how it starts; ``identity``: the common name of the
+    certificate its node links with (``component@host``, or the scheduler's host for a component
+    not placed under ``components:``)."""
 
     component: str
     host: str
@@ -107,6 +113,20 @@ class NodePlace:
     ssh: str
     workdir: str
     python: str
+    identity: str = ""
+
+
+def component_identity(component: str, host: str) -> str:
+    """The common name of a placed component's own certificate: ``component@host``."""
+    return f"{component}@{host}"
+
+
+def component_files(host_cert: Path, host_key: Path, component: str) -> tuple[Path, Path]:
+    """A placed component's own certificate and key: beside its host's, ``HOSTCERT.COMPONENT.pem``
+    and ``HOSTKEY.COMPONENT.key`` (``certs/lab.pem`` -> ``certs/lab.driver.pem``)."""
+    host_cert, host_key = Path(host_cert), Path(host_key)
+    return (host_cert.with_name(f"{host_cert.stem}.{component}{host_cert.suffix}"),
+            host_key.with_name(f"{host_key.stem}.{component}{host_key.suffix}"))
 
 
 @dataclass(frozen=True)
@@ -147,11 +167,14 @@ def load_hosts(path: Path, scenario: Scenario) -> HostsPlan:
     used = {here, *(spec.components[c].host for c in spec.components)}
     base = path.parent
 
-    def tls_of(host: str) -> TlsFiles | None:
+    def tls_of(host: str, component: str | None = None) -> TlsFiles | None:
+        """The host's files, or with ``component`` the component's own certificate and key."""
         h = spec.hosts[host]
         if spec.tls is None or h.cert is None or h.key is None:
             return None
-        return TlsFiles(base / spec.tls.ca, base / h.cert, base / h.key)
+        if component is None:
+            return TlsFiles(base / spec.tls.ca, base / h.cert, base / h.key)
+        return TlsFiles(base / spec.tls.ca, *component_files(base / h.cert, base / h.key, component))
 
     def launch_of(host: str) -> str:
         return "local" if host == here else spec.hosts[host].launch or spec.launch
@@ -192,20 +215,29 @@ def load_hosts(path: Path, scenario: Scenario) -> HostsPlan:
     scheduler_listen = endpoint(("scheduler", "listen"), spec.scheduler.listen, here)
     nodes = {}
     for name in scenario.components:
-        place = spec.components.get(name) or PlacementSpec(host=here)
+        placed = spec.components.get(name)
+        place = placed or PlacementSpec(host=here)
         h = spec.hosts[place.host]
         listen = endpoint(("components", name, "listen"), place.listen, place.host)
-        nodes[name] = NodePlace(name, place.host, listen, place.cpus, launch_of(place.host),
-                                tls_of(place.host) if listen.startswith("tls/") else None,
-                                h.ssh or h.address, h.workdir or os.getcwd(), h.python)
+        tls = None
+        if listen.startswith("tls/"):  # a placed component links with a certificate of its own
+            tls = tls_of(place.host, name if placed else None)
+        identity = component_identity(name, place.host) if placed else here
+        nodes[name] = NodePlace(name, place.host, listen, place.cpus, launch_of(place.host), tls,
+                                h.ssh or h.address, h.workdir or os.getcwd(), h.python, identity)
+    checks = []  # (field, file) of the files this machine's processes link with
     for host in sorted(used):
         files = tls_of(host)
         if files is not None and launch_of(host) == "local":  # on other machines the node checks its own
-            for field, file in (("tls.ca", files.ca), (f"hosts.{host}.cert", files.cert),
-                                (f"hosts.{host}.key", files.key)):
-                if not file.is_file():
-                    fail(tuple(field.split(".")), f"{file} does not exist (cosim certs {path} makes the run's "
-                                                  "certificates)")
+            checks += [(("tls", "ca"), files.ca), (("hosts", host, "cert"), files.cert),
+                       (("hosts", host, "key"), files.key)]
+    for name, place in nodes.items():
+        if name in spec.components and place.tls is not None and place.launch == "local":
+            checks += [(("components", name), place.tls.cert), (("components", name), place.tls.key)]
+    for loc, file in checks:
+        if not file.is_file():
+            fail(loc, f"{file} does not exist (cosim certs {path} makes the run's certificates: one per host "
+                      "and one per component placed under components:)")
     return HostsPlan(path, here, scheduler_listen, tls_of(here) if scheduler_listen.startswith("tls/") else None,
                      nodes, spec.wait_s)
 

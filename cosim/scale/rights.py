@@ -1,12 +1,14 @@
 """Per-component rights on the bus of a run over machines: zenoh access control by certificate name.
 
-In a ``--hosts`` run every link is mutual TLS with certificates of the run's CA,
-one per host, whose common name is the host's name in the hosts file (``cosim
-certs``). Every process of the run (scheduler and nodes) filters what reaches it
-by the certificate of the peer it came from (zenoh's ``access_control``, default
-deny): a host may
+In a ``--hosts`` run every link is mutual TLS with certificates of the run's CA
+(``cosim certs``): one per host, whose common name is the host's name in the
+hosts file, and one per component placed under ``components:``, named
+``component@host``, which that component's node links with. Every process of the
+run (scheduler and nodes) filters what reaches it by the certificate of the peer
+it came from (zenoh's ``access_control``, default deny). An identity (a
+certificate name) may
 
-* publish the outputs and the replies of the components it runs, and declare
+* publish the outputs and the replies of its components, and declare
   their liveliness tokens;
 * subscribe to the outputs its components take as inputs, to the scheduler's
   tick key and to its components' command keys, and watch the scheduler's
@@ -14,14 +16,16 @@ deny): a host may
 * the scheduler's host alone publishes ticks and commands and declares the
   scheduler's token; it subscribes to every reply and watches the nodes' tokens.
 
-So a holder of the camera host's certificate can publish the camera's outputs
-and nothing the coil driver takes from the controller; a put it makes on the
-controller's key is dropped by every process it reaches. The rights go to hosts,
-not to processes: two components on one host share its certificate and so the
-union of their rights.
+A placed component's identity has that one component: a holder of the camera's
+certificate can publish the camera's outputs and replies and nothing else, even
+when the coil driver runs on the same host; a put it makes on another key is
+dropped by every process it reaches (and logged there, see
+:mod:`cosim.runtime.security_log`). A host's own certificate carries no component
+of its own, except the scheduler's host, whose certificate the components not
+placed under ``components:`` share with the scheduler (they run on its machine).
 
 The rights travel to each node as ``--rights`` text (:func:`format_rights`):
-``SCHEDULER_HOST;HOST=COMP,COMP;HOST=COMP`` (names are single key chunks and
+``SCHEDULER_HOST;IDENTITY=COMP,COMP;IDENTITY=COMP`` (names are single key chunks and
 certificate names, so they hold no ``;``, ``=`` or ``,``).
 """
 
@@ -38,15 +42,15 @@ ALL_MESSAGES = ("put", "delete", "declare_subscriber", "query", "declare_queryab
 
 @dataclass(frozen=True)
 class Rights:
-    """Which host runs the scheduler, and which components each host runs."""
+    """Which host runs the scheduler, and the components of each identity (certificate common name)."""
 
     scheduler_host: str
-    hosts: dict[str, tuple[str, ...]]
+    identities: dict[str, tuple[str, ...]]
 
 
 def format_rights(rights: Rights) -> str:
-    """The rights as one command-line word: ``SCHEDULER_HOST;HOST=COMP,COMP;...`` (see :func:`parse_rights`)."""
-    return ";".join([rights.scheduler_host, *(f"{h}={','.join(cs)}" for h, cs in rights.hosts.items())])
+    """The rights as one command-line word: ``SCHEDULER_HOST;IDENTITY=COMP,COMP;...`` (see :func:`parse_rights`)."""
+    return ";".join([rights.scheduler_host, *(f"{h}={','.join(cs)}" for h, cs in rights.identities.items())])
 
 
 def parse_rights(text: str) -> Rights:
@@ -56,7 +60,7 @@ def parse_rights(text: str) -> Rights:
     for part in parts[1:]:
         host, eq, comps = part.partition("=")
         if not eq or not host:
-            raise UserError(f"--rights {text!r}: expected SCHEDULER_HOST;HOST=COMP,COMP;..., not {part!r}")
+            raise UserError(f"--rights {text!r}: expected SCHEDULER_HOST;IDENTITY=COMP,COMP;..., not {part!r}")
         hosts[host] = tuple(c for c in comps.split(",") if c)
     if not parts[0]:
         raise UserError(f"--rights {text!r}: the scheduler's host is missing (first field)")
@@ -73,7 +77,7 @@ def access_control(run_id: str, wiring, rights: Rights) -> dict:
                       "key_exprs": sorted(set(keys))})
         return rid
 
-    for i, (host, comps) in enumerate(rights.hosts.items()):
+    for i, (host, comps) in enumerate(rights.identities.items()):
         own = [f"h{i}-egress"]
         rule(own[0], ALL_MESSAGES, [f"{base}/**"], flows=("egress",))
         inputs = {e.src for c in comps for e in wiring.edges_into(c)}
@@ -100,8 +104,9 @@ def access_control(run_id: str, wiring, rights: Rights) -> dict:
 
 
 def rights_of(plan) -> Rights:
-    """The rights of a hosts plan (:class:`cosim.scale.hosts.HostsPlan`): its components by host."""
-    hosts: dict[str, list[str]] = {plan.scheduler_host: []}
+    """The rights of a hosts plan (:class:`cosim.scale.hosts.HostsPlan`): each node's component under
+    the identity it links with (its own certificate's, or the scheduler host's)."""
+    identities: dict[str, list[str]] = {plan.scheduler_host: []}
     for name, place in plan.nodes.items():
-        hosts.setdefault(place.host, []).append(name)
-    return Rights(plan.scheduler_host, {h: tuple(cs) for h, cs in hosts.items()})
+        identities.setdefault(place.identity or place.host, []).append(name)
+    return Rights(plan.scheduler_host, {h: tuple(cs) for h, cs in identities.items()})

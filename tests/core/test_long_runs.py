@@ -172,6 +172,18 @@ def test_the_end_of_a_replayed_input_ends_an_open_ended_run_as_a_timed_one(tmp_p
     assert len(load_trace(tmp_path)["t_s"]) == 50
 
 
+def test_the_end_of_a_replayed_input_in_a_node_ends_the_run_as_in_one_process(tmp_path):
+    """With a process per component the node whose input ended tells the scheduler so: the run ends
+    ``ok`` with the same ticks, the same log and the same end as in one process (not as a failure)."""
+    overrides = ["components.relay.params.mode=end", "duration_s=null"]
+    one = run(RunRequest(FAULTY, tmp_path / "one", overrides, progress=False))
+    many = run(RunRequest(FAULTY, tmp_path / "many", overrides, processes=True, progress=False))
+    assert many["status"] == "ok" and many["error"] is None and many["steps"] == one["steps"] == 50
+    assert many["end"] == one["end"] == "input ended (relay: the recording replayed has no more rows)"
+    assert (tmp_path / "many" / "log.csv").read_bytes() == (tmp_path / "one" / "log.csv").read_bytes()
+    assert len(load_trace(tmp_path / "many")["t_s"]) == 50
+
+
 def test_replay_opens_the_parts_asked_for(tmp_path):
     from cosim.cli.commands import recording_files
     from cosim.contract.errors import UserError

@@ -11,7 +11,7 @@ import pytest
 
 from cosim.cli import main
 from cosim.contract.errors import UserError
-from cosim.runtime.placement import node_cpus, parse_cpu_list
+from cosim.runtime.placement import keep_thread_off, node_cpus, parse_cpu_list
 from cosim_plugins.resources import SCENARIOS_DIR
 
 REPO = Path(__file__).parents[2]
@@ -32,6 +32,27 @@ def test_auto_puts_every_node_on_the_last_cpu_this_process_may_use():
     assert node_cpus("auto") == str(max(os.sched_getaffinity(0)))
     with pytest.raises(UserError, match="CPU 4096 is not available"):
         node_cpus("4096")
+
+
+@linux_only
+def test_the_schedulers_thread_keeps_off_the_nodes_cpus_when_others_are_left():
+    import threading
+
+    available = os.sched_getaffinity(0)
+    seen = {}
+
+    def worker(spec):
+        seen[spec] = (keep_thread_off(spec), os.sched_getaffinity(0))
+
+    for spec in (str(max(available)), ",".join(map(str, sorted(available)))):
+        thread = threading.Thread(target=worker, args=(spec,))
+        thread.start()
+        thread.join()
+    last, every = str(max(available)), ",".join(map(str, sorted(available)))
+    if len(available) > 1:
+        assert seen[last] == (True, available - {max(available)})
+    assert seen[every] == (False, available)  # no CPU left: the thread stays where it may run
+    assert os.sched_getaffinity(0) == available  # the calling thread only: this one is untouched
 
 
 @linux_only

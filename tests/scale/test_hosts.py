@@ -66,7 +66,10 @@ def test_a_run_over_two_hosts_logs_the_bytes_of_one_process(tmp_path, ports):
     hosts = write_hosts(tmp_path, ports)
     run_proc, commands = start_run(tmp_path, hosts)
     assert [re.search(r"node (\w+)", c)[1] for c in commands] == list(REMOTE)
-    assert all(c.startswith(f"cd {tmp_path} && exec ") and "--tls-cert certs/two.pem" in c for c in commands)
+    assert all(c.startswith(f"cd {tmp_path} && exec ") for c in commands)
+    # each node links with its component's own certificate (the rights go by its name), not its host's
+    assert all(f"--tls-cert certs/two.{name}.pem --tls-key certs/two.{name}.key" in c
+               for name, c in zip(REMOTE, commands))
     nodes = [subprocess.Popen(["bash", "-c", c]) for c in commands]  # as someone would on host two
     code, err = finish(run_proc)
     assert code == 0, err

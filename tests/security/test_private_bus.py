@@ -4,6 +4,7 @@ per tick of each producer, from that producer's key."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import stat
@@ -15,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from proc_sockets import socket_inodes
+
+from cosim.runtime.security_log import SecurityLog
 
 ROOT = Path(__file__).resolve().parents[2]
 TOY = ROOT / "tests" / "core" / "data" / "toy.yaml"
@@ -96,7 +99,7 @@ def test_a_process_of_another_user_cannot_join_a_processes_run(tmp_path):
     assert not folder.exists()  # the run removed its sockets' folder
 
 
-def test_a_node_accepts_each_producers_tick_once():
+def test_a_node_accepts_each_producers_tick_once(tmp_path):
     """A second sample for a tick, a replay of an older one, a stamp off the producer's period and a
     payload of the wrong size are dropped; the first sample for each tick is what the node steps with."""
     from cosim.contract.component import Port
@@ -120,9 +123,11 @@ def test_a_node_accepts_each_producers_tick_once():
 
     store = PortStore({"controller": [Port("omega", (3,), "Hz")]}, keep=8)
     stepper = Stepper()
-    node = _Node(stepper, store, [("controller", "omega", 2, 1)], 1, 0.02, lambda *a, **k: None)
+    log = SecurityLog(tmp_path, "node coil_driver")
+    node = _Node(stepper, store, [("controller", "omega", 2, 1)], 1, 0.02, lambda *a, **k: None, log, "r1")
     node.on_data("controller", Sample(-1, [1, 0, 0]))
-    node.on_data("controller", Sample(-1, [9, 9, 9]))  # a second initial sample: dropped
+    node.on_data("controller", Sample(-1, [1, 0, 0]))  # the initial outputs sent again (set-up does): no event
+    node.on_data("controller", Sample(-1, [9, 9, 9]))  # another initial sample: dropped
     node.on_data("controller", Sample(0, [2, 0, 0]))
     node.on_data("controller", Sample(0, [7.77, 0, 0]))  # a forged second sample for tick 0: dropped
     node.on_data("controller", Sample(1, [5, 0, 0]))  # off the producer's period of 2: dropped
@@ -134,9 +139,20 @@ def test_a_node_accepts_each_producers_tick_once():
         node._advance()
     assert stepper.seen == [(0, 1.0), (1, 2.0), (2, 2.0)]
     assert node.security_events == 5
+    events = [json.loads(line) for line in (tmp_path / "security.jsonl").read_text().splitlines()]
+    assert [(e["key"], e["tick"]) for e in events] == [("cosim/r1/controller/outputs", t) for t in (-1, 0, 1, 2, 0)]
+    assert all(e["process"] == "node coil_driver" and e["time"].endswith("Z") for e in events)
+    assert "already accepted or out of order" in events[1]["reason"]
+    assert "payload holds 2 values, expected 1 x 3" in events[3]["reason"]
+    # a command that is none (a forged one, say) is dropped and noted too
+    node.on_cmd(type("S", (), {"payload": type("P", (), {"to_bytes": lambda _: b'{"cmd": "arm"}'})(),
+                                "key_expr": "cosim/r1/ctl/coil_driver/cmd"})())
+    assert not node.stopped.is_set() and node.security_events == 6
+    last = json.loads((tmp_path / "security.jsonl").read_text().splitlines()[-1])
+    assert last["key"] == "cosim/r1/ctl/coil_driver/cmd" and "none of stop, flush, init" in last["reason"]
 
 
-def test_the_scheduler_takes_a_reply_only_from_the_node_it_names():
+def test_the_scheduler_takes_a_reply_only_from_the_node_it_names(tmp_path):
     """A reply on camera's key that names the controller (a forged failure, say) is dropped and counted."""
     from cosim.runtime import bus
     from cosim.runtime.portcache import PortStore
@@ -147,7 +163,7 @@ def test_the_scheduler_takes_a_reply_only_from_the_node_it_names():
     wiring = build_wiring(load_scenario(TOY))
     session = bus.open_session()
     try:
-        group = RemoteGroup(session, "r1", wiring, PortStore(wiring.outputs))
+        group = RemoteGroup(session, "r1", wiring, PortStore(wiring.outputs), SecurityLog(tmp_path, "scheduler"))
         forged = bus.encode_json({"name": "controller", "tick": 3, "phase": None, "ok": False, "error": "forged"})
         session.put(bus.ctl_key("r1", "camera", "reply"), b"", attachment=forged)
         own = bus.encode_json({"name": "camera", "tick": -1, "phase": "check", "ok": True, "missing": []})
@@ -155,5 +171,8 @@ def test_the_scheduler_takes_a_reply_only_from_the_node_it_names():
         assert group.poll_reply(2.0) == {"name": "camera", "tick": -1, "phase": "check", "ok": True, "missing": []}
         assert group.poll_reply(0.2) is None
         assert group.security_events == ["dropped a reply on cosim/r1/ctl/camera/reply naming 'controller'"]
+        (event,) = [json.loads(line) for line in (tmp_path / "security.jsonl").read_text().splitlines()]
+        assert event["key"] == "cosim/r1/ctl/camera/reply" and event["process"] == "scheduler"
+        assert event["reason"] == "dropped a reply naming 'controller', not its key's node"
     finally:
         session.close()

@@ -1,9 +1,12 @@
-"""Per-component rights in a ``--hosts`` run (three loopback addresses standing in for three machines):
-a holder of the camera host's certificate, connecting from elsewhere, cannot change what the coil driver
-applies; plain TCP beyond loopback is refused."""
+"""Per-component rights in a ``--hosts`` run (two loopback addresses standing in for two machines, one of
+them running the camera and the coil driver): a holder of the camera's certificate, connecting from
+elsewhere, cannot change what the coil driver applies nor what the plant is driven with, though the coil
+driver runs on the camera's host; every attempt is refused and logged in the run's security.jsonl; plain
+TCP beyond loopback is refused."""
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import subprocess
@@ -35,19 +38,18 @@ def _free_port(address: str) -> int:
 
 
 def _hosts(folder: Path) -> Path:
-    ports = {a: _free_port(a) for a in ("127.0.0.1", "127.0.0.2", "127.0.0.3")}
+    sim, lab = _free_port("127.0.0.1"), [_free_port("127.0.0.2") for _ in range(2)]
     hosts = folder / "hosts.yaml"
     hosts.write_text(f"""
 wait_s: 60
 tls: {{ca: certs/ca.pem}}
-scheduler: {{host: sim, listen: tls/127.0.0.1:{ports['127.0.0.1']}}}
+scheduler: {{host: sim, listen: tls/127.0.0.1:{sim}}}
 hosts:
   sim: {{address: 127.0.0.1, cert: certs/sim.pem, key: certs/sim.key}}
-  cam: {{address: 127.0.0.2, launch: local, cert: certs/cam.pem, key: certs/cam.key}}
-  lab: {{address: 127.0.0.3, launch: local, cert: certs/lab.pem, key: certs/lab.key}}
+  lab: {{address: 127.0.0.2, launch: local, cert: certs/lab.pem, key: certs/lab.key}}
 components:
-  camera: {{host: cam, listen: tls/127.0.0.2:{ports['127.0.0.2']}}}
-  coil_driver: {{host: lab, listen: tls/127.0.0.3:{ports['127.0.0.3']}}}
+  camera: {{host: lab, listen: tls/127.0.0.2:{lab[0]}}}
+  coil_driver: {{host: lab, listen: tls/127.0.0.2:{lab[1]}}}
 """)
     assert main(["certs", str(hosts)]) == 0
     return hosts
@@ -70,10 +72,10 @@ def _node_args(run_pid: int, component: str, timeout_s: float = 90.0) -> list[st
     raise AssertionError(f"no node of {component} appeared")
 
 
-def test_the_camera_certificate_cannot_drive_the_coils(tmp_path):
+def test_the_camera_certificate_cannot_drive_the_coils_of_its_own_host(tmp_path):
     hosts = _hosts(tmp_path)
     certs = tmp_path / "certs"
-    stolen = TlsFiles(certs / "ca.pem", certs / "cam.pem", certs / "cam.key")
+    stolen = TlsFiles(certs / "ca.pem", certs / "lab.camera.pem", certs / "lab.camera.key")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     run_proc = subprocess.Popen([sys.executable, "-m", "cosim.cli", "run", str(SCENARIO), "--processes", "--hosts",
                                  str(hosts), "--out", "run", "--quiet", "--realtime", "1",
@@ -84,17 +86,20 @@ def test_the_camera_certificate_cannot_drive_the_coils(tmp_path):
         args = _node_args(run_proc.pid, "coil_driver")
         run_id = args[args.index("--run-id") + 1]
         endpoints = [args[args.index("--listen") + 1], *[a for i, a in enumerate(args) if args[i - 1] == "--connect"]]
-        # the camera host's files, used from another address: the coil driver's node, the scheduler, all
+        # the camera's files, used from another address: the coil driver's node, the scheduler, all
         session = bus.open_session(connect=endpoints, tls=stolen)
         scenario = load_scenario(SCENARIO, SHORT)
-        size = sum(int(np.prod(p.shape)) for p in build_wiring(scenario).outputs["controller"])
-        forged = np.full(size, FORGED_HZ)
-        out = bus.publisher(session, bus.outputs_key(run_id, "controller"))
+        outputs = build_wiring(scenario).outputs
+        # what the coil driver takes (the controller's outputs) and what the plant takes (the coil driver's)
+        forged = {c: np.full(sum(int(np.prod(p.shape)) for p in outputs[c]), FORGED_HZ)
+                  for c in ("controller", "coil_driver")}
+        outs = {c: bus.publisher(session, bus.outputs_key(run_id, c)) for c in forged}
         cmd = bus.publisher(session, bus.ctl_key(run_id, "coil_driver", "cmd"))
         tick_pub = bus.publisher(session, bus.tick_key(run_id))
-        for _ in range(300):  # bounded: up to 300 bursts (15 s), every tick stamped ahead of the controller
+        for _ in range(300):  # bounded: up to 300 bursts (15 s), every tick stamped ahead of its producer
             for tick in range(scenario.n_steps):
-                out.put(forged.tobytes(), attachment=bus.encode_tick(tick))
+                for comp, values in forged.items():
+                    outs[comp].put(values.tobytes(), attachment=bus.encode_tick(tick))
             tick_pub.put(bus.encode_json({"until": scenario.n_steps}))
             cmd.put(bus.encode_json({"cmd": "stop"}))
             if run_proc.poll() is not None:
@@ -112,7 +117,18 @@ def test_the_camera_certificate_cannot_drive_the_coils(tmp_path):
     assert one["status"] == "ok"
     log = (tmp_path / "run" / "log.csv").read_text()
     assert str(FORGED_HZ) not in log
-    assert log == (tmp_path / "one" / "log.csv").read_text()  # what the coil driver applied: the controller's
+    # what the coil driver applied was the controller's, and the plant moved as driven by the coil driver's
+    assert log == (tmp_path / "one" / "log.csv").read_text()
+    # every attempt refused where it arrived, logged with its time, key and reason in the run's security.jsonl
+    events = [json.loads(line) for line in (tmp_path / "run" / "security.jsonl").read_text().splitlines()]
+    refused = {(e["process"], e["key"]) for e in events if e.get("from") == "camera@lab"}
+    assert {("node coil_driver", bus.outputs_key(run_id, "controller")),
+            ("node coil_driver", bus.ctl_key(run_id, "coil_driver", "cmd")),
+            ("node plant", bus.outputs_key(run_id, "coil_driver"))} <= refused, refused
+    assert all(e["reason"].startswith("refused by access control: camera@lab may not") and e["time"]
+               for e in events if e.get("from"))
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "ok" and summary["security_event_count"] >= len(events)
 
 
 def test_plain_tcp_beyond_loopback_is_refused(tmp_path, capsys):
@@ -131,5 +147,27 @@ def test_rights_text_round_trips_and_bad_text_is_named():
 
     rights = Rights("sim", {"sim": ("plant", "controller"), "cam": ("camera",)})
     assert parse_rights(format_rights(rights)) == rights
-    with pytest.raises(UserError, match="expected SCHEDULER_HOST;HOST=COMP"):
+    with pytest.raises(UserError, match="expected SCHEDULER_HOST;IDENTITY=COMP"):
         parse_rights("sim;cam")
+
+
+def test_each_placed_component_links_with_a_certificate_of_its_own_and_its_rights_only(tmp_path):
+    from cosim.scale.hosts import load_hosts
+    from cosim.scale.rights import access_control, rights_of
+
+    scenario = load_scenario(SCENARIO)
+    plan = load_hosts(_hosts(tmp_path), scenario)
+    assert {n: (p.identity, p.tls.cert.name) for n, p in plan.nodes.items() if n in ("camera", "coil_driver")} == \
+        {"camera": ("camera@lab", "lab.camera.pem"), "coil_driver": ("coil_driver@lab", "lab.coil_driver.pem")}
+    rights = rights_of(plan)
+    # the components not placed run on the scheduler's machine, under its certificate; the lab host's own has none
+    assert rights.identities == {"sim": ("plant", "estimator", "controller"), "camera@lab": ("camera",),
+                                 "coil_driver@lab": ("coil_driver",)}
+    acl = access_control("r1", build_wiring(scenario), rights)
+    subject = {s["cert_common_names"][0]: s["id"] for s in acl["subjects"]}
+    policy = next(p for p in acl["policies"] if p["subjects"] == [subject["camera@lab"]])
+    rules = {r["id"]: r for r in acl["rules"] if r["id"] in policy["rules"]}
+    puts = sorted(k for r in rules.values() if r["flows"] == ["ingress"] and "put" in r["messages"]
+                  for k in r["key_exprs"])
+    assert puts == ["cosim/r1/camera/outputs", "cosim/r1/ctl/camera/reply"]
+    assert "lab" not in subject  # a certificate of the host alone may publish nothing
