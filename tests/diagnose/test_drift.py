@@ -106,6 +106,14 @@ def test_homogeneity_and_trend_tests_on_known_values():
     assert w["slope"] == pytest.approx(0.002, rel=0.05) and w["p"] < 1e-6
     flat = within_logs(log * 0.5 + 0.01 * rng.standard_normal(40), np.full(40, 0.01), log, t)
     assert flat["p"] > 1e-3
+    # blocks scattering 3x beyond their stated uncertainty: the Birge ratio ~9 takes the false trend back
+    loose = within_logs(log * 0.5 + 0.03 * rng.standard_normal(40), np.full(40, 0.01), log, t)
+    assert loose["scatter"] == pytest.approx(9.0, rel=0.5) and loose["p"] > 1e-3
+    # per-log values 1 % apart (std) with 0.1 % uncertainties: the excess spread is the 1 %
+    apart = between_logs(1.0 + 0.01 * rng.standard_normal(200), np.full(200, 0.001), np.arange(200.0))
+    assert apart["excess_sd"] == pytest.approx(0.01, rel=0.15)
+    assert between_logs(1.0 + 0.01 * rng.standard_normal(200), np.full(200, 0.001), np.arange(200.0),
+                        scatter=100.0)["p"] > 1e-3  # the same spread, all of it scatter: homogeneous
 
 
 def test_per_column_parameters_step_each_column_with_its_own_values():
