@@ -64,10 +64,12 @@ class Fitter:
     def with_each(self, before: Fit, effects, quick: bool = False) -> list:
         """[:meth:`with_effects` (``before``, [effect]) for each effect], in order, over ``s.jobs`` forked
         processes (they inherit this fitter's data; each returns its fit). One process when ``jobs`` is 1, the
-        platform cannot fork, or an effect cannot be sent between processes (then each fit runs here)."""
+        platform cannot fork, or a fit's effects (``before``'s and the new one) cannot be sent between processes
+        (then each fit runs here)."""
         jobs = min(self.s.jobs, len(effects))
         what = "quick fits" if quick else "candidate fits"
-        if jobs > 1 and "fork" in multiprocessing.get_all_start_methods() and _picklable(effects):
+        forkable = "fork" in multiprocessing.get_all_start_methods()
+        if jobs > 1 and forkable and _picklable([*before.model.effects, *effects]):
             global _FORKED
             _FORKED = (self, before, list(effects), quick)
             try:

@@ -87,14 +87,13 @@ def block_units(tl, block_s: float = BLOCK_S) -> Units:
 @dataclass
 class PerUnitFit:
     """Base parameters ``names`` fitted per unit: ``values`` (U, F), ``cov`` (U, F, F) cluster-robust (NaN where
-    a unit had too few windows: it keeps the shared values), ``windows`` (U,) training windows per unit, and
-    ``model``: a copy of the model whose rollouts use these values per window (its ``per_unit``)."""
+    a unit had too few windows: it keeps the shared values), and ``model``: a copy of the model whose rollouts
+    use these values per window (its ``per_unit``)."""
 
     names: tuple
     units: Units
     values: np.ndarray
     cov: np.ndarray
-    windows: np.ndarray
     model: JointModel
 
 
@@ -178,7 +177,7 @@ def fit_per_unit(jm: JointModel, tl, starts: np.ndarray, units: Units, names, le
     cov = _robust_cov(J, r, uw, starts // max(cluster_rows, 1), U)
     cov[~active] = np.nan
     model.per_unit = UnitOffsets(names, units.of_row, off)
-    return PerUnitFit(names, units, shared + off, cov, counts, model)
+    return PerUnitFit(names, units, shared + off, cov, model)
 
 
 def _robust_cov(J, r, uw, block, U) -> np.ndarray:

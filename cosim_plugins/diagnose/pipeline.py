@@ -271,9 +271,7 @@ def _drift(s: Settings, split: dict, selection: Selection, fitter: Fitter, train
     """diagnosis.json's ``drift`` (see :mod:`.drift`); with ``--per-log`` its fit joins the ranking. A chosen
     effect that the drift makes unnecessary leaves ``result["stepwise"]["steps"]`` for its ``dropped``."""
     final, ranking = selection.final, result["ranking"]
-    if s.per_log is not None or s.t_start is not None:
-        s.drift = True
-    if not s.drift:
+    if not (s.drift or s.per_log is not None or s.t_start is not None):  # --per-log, --t-start ask for it
         return {"flagged": [], "skipped": "--no-drift"}
     if split["kind"] != "time_blocks":
         return {"flagged": [], "skipped": "the held-out data are --validate logs: drift is tested on held-out "
