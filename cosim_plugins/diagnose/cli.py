@@ -186,12 +186,17 @@ def _drift_lines(d: dict, key: str) -> list[str]:
     if d.get("skipped"):
         return ["", f"drift: not tested ({d['skipped']})"]
     lines = []
-    for what, fit in (("per log", d.get("between")), ("per block", d.get("within"))):
+    b, w = d.get("between"), d.get("within")
+    fits = [(f"{', '.join(d['params'])} free per log", b), ("a trend from log to log", (b or {}).get("trend")),
+            ("a trend within the logs", w)]
+    for what, fit in fits:
         if not fit:
             continue
-        tests = ", ".join(f"{q} p={v['p']:.0e}" for q, v in fit["quantities"].items())
-        lines.append(f"drift, {', '.join(d['params'])} free {what}: {_num(fit['rollout_mm'][key])} mm at {key} s "
-                     f"({fit['reduction']:+.1%}, t = {fit['t_stat']:.1f}); {tests}")
+        line = (f"drift, {what}: {_num(fit['rollout_mm'][key])} mm at {key} s ({fit['reduction']:+.1%}, "
+                f"t = {fit['t_stat']:.1f})")
+        if "quantities" in fit:
+            line += "; " + ", ".join(f"{q} p={v['p']:.0e}" for q, v in fit["quantities"].items())
+        lines.append(line)
     if lines:
         lines.append("drift flagged: " + (", ".join(d["flagged"]) if d["flagged"] else "none (the logs agree)"))
     return [""] + lines if lines else []

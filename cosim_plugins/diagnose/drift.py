@@ -8,22 +8,29 @@ the stepwise search, the chosen model's base parameters are refitted free
 * per log, in the order recorded (the file order, or ``--t-start``), and
 * per block of time within each log (a slow trend over minutes),
 
-the rest shared. A quantity (the speed per Hz, the velocity time constant,
-the sinking speed: :data:`~.per_unit.QUANTITIES`) is *flagged* when
+the rest shared. Free values per unit scatter (each unit has few windows), so
+each fit is also smoothed to straight lines (:func:`~.per_unit.trend_fit`):
+the per-log values on a line in the order recorded, the per-block values on a
+line in time with a level per log. A quantity (the speed per Hz, the velocity
+time constant, the sinking speed: :data:`~.per_unit.QUANTITIES`) is *flagged*
+when
 
-* the per-log (per-block) model lowers the held-out error at the reference
-  horizon by at least :data:`MIN_REDUCTION`, with paired t >= :data:`MIN_T`,
-  against the shared model: the drift matters for prediction, and
+* the model that shows it lowers the held-out error at the reference horizon
+  against the shared model, with paired t >= :data:`MIN_T`, by at least
+  :data:`MIN_REDUCTION` or, near the noise floor, by :data:`EXCESS_SHARE` of
+  the excess over it (:func:`_matters`): the drift matters for prediction;
+  within logs, the trend model also beats the free per-log one with paired
+  t >= :data:`BETTER_T`, and
 * its values differ beyond their uncertainty: between logs, the chi-square
-  test of their homogeneity gives p < :data:`P_FLAG`; within logs, the
-  trend against time within each log gives p < :data:`P_FLAG` and the
-  per-block model also beats the per-log one on held-out data; the
-  uncertainties are widened by how much blocks of one log scatter beyond
-  them (a Birge ratio: conditions that change from block to block move a
-  fit more than its covariance says),
+  test of their homogeneity (free per-log model) or the slope of their trend
+  in the order recorded (trend model) gives p < :data:`P_FLAG`; within logs,
+  the slope against time; the uncertainties are widened by how much blocks
+  of one log scatter beyond them (a Birge ratio: conditions that change from
+  block to block move a fit more than its covariance says),
 * it is large enough to be a change of the plant: between logs, the values'
-  spread beyond their uncertainty is >= :data:`MIN_SPREAD` (relative std);
-  within, the trend changes it by >= :data:`MIN_CHANGE` over a log, and
+  spread beyond their uncertainty (or the trend's change from one log to the
+  next) is >= :data:`MIN_SPREAD`; within, the trend changes it by
+  >= :data:`MIN_CHANGE` over a log, and
 * its own variation matters: holding it at its shared value in every unit
   (the other quantities as fitted, :func:`~.per_unit.held`) raises the
   held-out error with paired t >= :data:`MIN_T`. A quantity the logs barely
@@ -37,6 +44,7 @@ shared) as a candidate ranked like an effect, by its held-out drop.
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import ndtr
 
 from cosim_plugins.diagnose.per_unit import (
     CLUSTER_S,
@@ -49,6 +57,7 @@ from cosim_plugins.diagnose.per_unit import (
     log_units,
     quantities,
     sample_per_unit,
+    trend_fit,
     within_logs,
 )
 
@@ -61,7 +70,8 @@ P_FLAG = 1e-3
 MIN_SPREAD = 0.01
 MIN_CHANGE = 0.02
 TREND_T = 3.0  # a between-log difference is called a trend in the order recorded when its slope has |t| >= this
-BETTER_T = 2.0  # the per-block model beats the per-log one with paired t >= this
+BETTER_T = 2.0  # the trend within the logs beats the per-log model with paired t >= this
+EXCESS_SHARE = 0.5  # near the noise floor: the share of the excess over it a drifting model must remove
 
 
 def per_log_name(params) -> str:
@@ -103,8 +113,7 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
     if len(order) != n_logs:
         raise ValueError(f"--t-start gives {len(order)} start times for {n_logs} logs")
     cluster = max(1, int(round(CLUSTER_S / ttr.dt_s)))
-    out = {"params": list(names), "order": how,
-           "flagged": [], "per_log": {}, "t": {}, "words": []}
+    out = {"params": list(names), "order": how, "flagged": [], "per_log": {}, "t": {}, "words": []}
 
     def held_out(fit):
         ev = fit.model.evaluate(tte, fitter.test_starts, lead, fitter.steps)
@@ -122,6 +131,11 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
 
     logs, blocks = log_units(ttr), block_units(ttr)
     log_min = float(np.mean([np.nanmax(ttr.t_s[ttr.log == k]) for k in range(n_logs)])) / 60.0  # mean length
+    before = final.summary["rollout_mm"][key]
+
+    def gate(fit_out) -> bool:
+        return _matters(fit_out["reduction"], fit_out["t_stat"], before, fit_out["rollout_mm"][key], floor)
+
     between = within = None
     if n_logs >= 2:
         starts = sample_per_unit(train_starts, logs, fitter.s.seed + 5)
@@ -132,41 +146,73 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
         say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts)} windows) ...")
         within = fit_per_unit(jm, ttr, starts, blocks, names, lead, k_ref, cluster)
     trends = {}  # within logs, per quantity; their scatter also widens the between-log test
-    if within is not None:
-        ev_block, summ, red, t = held_out(within)
-        trends = {n: within_logs(x, sd, blocks.log, blocks.t_s) for n, (x, sd) in quantities(within, shared,
-                                                                                             mass).items()}
-        out["within"] = {"blocks": blocks.n, "rollout_mm": summ, "reduction": red, "t_stat": t, "quantities": trends}
+    flagged = {}  # flag -> the fit that shows it (a PerUnitFit) and its held-out figures
     if between is not None:
         ev_log, summ, red, t = held_out(between)
-        out["between"] = {"rollout_mm": summ, "reduction": red, "t_stat": t, "quantities": {
-            n: {**between_logs(x, sd, order, trends.get(n, {}).get("scatter", 1.0)), "values": _list(x),
-                "std": _list(sd)} for n, (x, sd) in quantities(between, shared, mass).items()}}
-        out["per_log"] = {n: _list(between.values[:, j]) for j, n in enumerate(names)}
-        out["t"] = {n: v["slope_t"] for n, v in out["between"]["quantities"].items()}
+        out["between"] = b = {"rollout_mm": summ, "reduction": red, "t_stat": t}
         say(f"drift: per log, held-out error at {key} s {summ[key]:.3f} mm ({red:+.1%}, t = {t:.1f})")
-        if red >= MIN_REDUCTION and t >= MIN_T:
-            for n, v in out["between"]["quantities"].items():
-                v["t_held"] = held_t(between, n, ev_log)
-                if v["p"] < P_FLAG and v["t_held"] >= MIN_T and v["excess_sd"] >= MIN_SPREAD:
-                    out["flagged"].append(n)
-                    out["words"].append(_between_words(n, v))
+        trend_log = trend_fit(between, np.zeros(n_logs), order, shared) if n_logs >= 3 else None
+        if trend_log is not None:
+            ev_tl, summ, red, t = held_out(trend_log)
+            b["trend"] = {"rollout_mm": summ, "reduction": red, "t_stat": t}
+            say(f"drift: a trend from log to log, held-out error at {key} s {summ[key]:.3f} mm ({red:+.1%}, "
+                f"t = {t:.1f})")
     if within is not None:
-        w = out["within"]
-        w["t_vs_per_log"] = vs_log = fitter.paired_t(ev_log[key], ev_block[key]) if between is not None else w["t_stat"]
-        say(f"drift: per block, held-out error at {key} s {w['rollout_mm'][key]:.3f} mm ({w['reduction']:+.1%}, "
-            f"t = {w['t_stat']:.1f}; against per log t = {vs_log:.1f})")
-        if w["reduction"] >= MIN_REDUCTION and w["t_stat"] >= MIN_T and vs_log >= BETTER_T:
+        trends = {n: within_logs(x, sd, blocks.log, blocks.t_s) for n, (x, sd) in quantities(within, shared,
+                                                                                             mass).items()}
+        _, summ_free, red_free, t_free = held_out(within)
+        trend_block = trend_fit(within, blocks.log, blocks.t_s, shared)
+        ev_block, summ, red, t = held_out(trend_block)
+        vs_log = fitter.paired_t(ev_log[key], ev_block[key]) if between is not None else t
+        out["within"] = w = {"blocks": blocks.n, "rollout_mm": summ, "reduction": red, "t_stat": t,
+                             "t_vs_per_log": vs_log, "quantities": trends,
+                             "free": {"rollout_mm": summ_free, "reduction": red_free, "t_stat": t_free}}
+        say(f"drift: a trend within the logs ({blocks.n} blocks), held-out error at {key} s {summ[key]:.3f} mm "
+            f"({red:+.1%}, t = {t:.1f}; against per log t = {vs_log:.1f})")
+        if gate(w) and vs_log >= BETTER_T:
             for n, v in trends.items():
-                v["t_held"] = held_t(within, n, ev_block)
+                v["t_held"] = held_t(trend_block, n, ev_block)
                 v["change_per_log"] = v["change_per_min"] * log_min
                 if v["p"] < P_FLAG and v["t_held"] >= MIN_T and abs(v["change_per_log"]) >= MIN_CHANGE:
-                    out["flagged"].append(f"within:{n}")
-                    out["words"].append(_within_words(n, v))
-    if out["flagged"] and chosen:
-        best = between if any(not f.startswith("within:") for f in out["flagged"]) else within
-        out["given_drift"] = _effects_given_drift(best, fitter, chosen, floor, say)
+                    flagged[f"within:{n}"] = (trend_block, w, _within_words(n, v), "a trend within the logs")
+    if between is not None:
+        b["quantities"] = {n: {**between_logs(x, sd, order, trends.get(n, {}).get("scatter", 1.0)),
+                               "values": _list(x), "std": _list(sd)}
+                           for n, (x, sd) in quantities(between, shared, mass).items()}
+        out["per_log"] = {n: _list(between.values[:, j]) for j, n in enumerate(names)}
+        out["t"] = {n: v["slope_t"] for n, v in b["quantities"].items()}
+        free_ok, trend_ok = gate(b), "trend" in b and gate(b["trend"])
+        for n, v in b["quantities"].items():
+            if free_ok:  # the logs differ, in any order
+                v["t_held"] = held_t(between, n, ev_log)
+                if v["p"] < P_FLAG and v["t_held"] >= MIN_T and v["excess_sd"] >= MIN_SPREAD:
+                    flagged[n] = (between, b, _between_words(n, v), "per log")
+                    continue
+            if trend_ok:  # the logs change in the order recorded
+                v["t_held_trend"] = held_t(trend_log, n, ev_tl)
+                p_slope = float(2 * ndtr(-abs(v["slope_t"])))
+                if p_slope < P_FLAG and v["t_held_trend"] >= MIN_T and abs(v["change_per_step"]) >= MIN_SPREAD:
+                    flagged[n] = (trend_log, b["trend"], _between_words(n, v), "a trend from log to log")
+    order_flags = [f for f in flagged if not f.startswith("within:")] + [f for f in flagged if f.startswith("within:")]
+    out["flagged"] = order_flags
+    out["words"] = [flagged[f][2] for f in order_flags]
+    if order_flags:
+        fit, figures, _, label = flagged[order_flags[0]]  # between before within: it explains more
+        out["explains"] = {"fit": label, **{k: figures[k] for k in ("rollout_mm", "reduction", "t_stat")}}
+        if chosen:
+            out["given_drift"] = _effects_given_drift(fit, fitter, chosen, floor, say)
     return out
+
+
+def _matters(reduction: float, t_stat: float, before_mm: float, after_mm: float, floor_mm: float | None) -> bool:
+    """A drifting model's held-out drop counts when its paired t >= MIN_T and it removes >= MIN_REDUCTION of the
+    error or, near the noise floor (where 5 % may be more than is left), >= EXCESS_SHARE of the excess over it."""
+    if t_stat < MIN_T:
+        return False
+    if reduction >= MIN_REDUCTION:
+        return True
+    excess = before_mm - floor_mm if floor_mm else 0.0
+    return excess > 0 and before_mm - after_mm >= EXCESS_SHARE * excess
 
 
 def _effects_given_drift(fit, fitter, chosen, floor, say) -> list:
@@ -206,18 +252,16 @@ def sentence(drift: dict, key: str) -> str:
     """The verdict's words on drift ('' when nothing is flagged)."""
     if not drift or not drift.get("flagged"):
         return ""
-    b, w = drift.get("between") or {}, drift.get("within") or {}
-    parts = [("The logs disagree with each other: " if b and any("within:" not in f for f in drift["flagged"])
-              else "The plant drifts within the logs: ") + "; ".join(drift["words"]) + "."]
-    for what, fit in (("per log", b), ("per block of time", w)):
-        if fit and fit["reduction"] >= MIN_REDUCTION and fit["t_stat"] >= MIN_T:
-            parts.append(f"With {', '.join(drift['params'])} free {what}, the held-out error at {key} s falls by "
-                         f"{fit['reduction']:.0%} (to {fit['rollout_mm'][key]:.2f} mm; t = {fit['t_stat']:.1f}).")
+    between_flagged = any(not f.startswith("within:") for f in drift["flagged"])
+    parts = [("The logs disagree with each other: " if between_flagged else "The plant drifts within the logs: ")
+             + "; ".join(drift["words"]) + "."]
+    fit = drift["explains"]
+    parts.append(f"With {', '.join(drift['params'])} fitted as {fit['fit']}, the held-out error at {key} s falls by "
+                 f"{fit['reduction']:.0%} (to {fit['rollout_mm'][key]:.2f} mm; t = {fit['t_stat']:.1f}).")
     gone = [g["effect"] for g in drift.get("given_drift", ()) if not g["kept"]]
     if gone:
         parts.append(f"{' and '.join(gone)}, which the search chose before, {'is' if len(gone) == 1 else 'are'} "
                      "not needed once the drift is allowed for.")
-    between_flagged = any(not f.startswith("within:") for f in drift["flagged"])
     parts.append("Next: look for what changed " + ("between the experiments (water temperature, the swimmer's "
                  f"insertion, coil heating); --per-log {','.join(drift['params'])} fits them per log."
                  if between_flagged else "during each experiment (coil heating, water warming, a swimmer "
@@ -239,7 +283,7 @@ def _between_words(name: str, v: dict) -> str:
 def _within_words(name: str, v: dict) -> str:
     words = QUANTITIES[name][0]
     way = "falls" if v["change_per_min"] < 0 else "rises"
-    return f"{words} {way} {abs(v['change_per_min']):.1%} per minute within the logs (t = {v['slope_t']:.1f})"
+    return f"{words} {way} {abs(v['change_per_min']):.1%} per minute within the logs (|t| = {abs(v['slope_t']):.1f})"
 
 
 def _mean_norm(r: dict) -> float | None:

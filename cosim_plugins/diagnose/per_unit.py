@@ -180,6 +180,39 @@ def fit_per_unit(jm: JointModel, tl, starts: np.ndarray, units: Units, names, le
     return PerUnitFit(names, units, shared + off, cov, model)
 
 
+def trend_fit(free: PerUnitFit, group: np.ndarray, along: np.ndarray, shared: dict) -> PerUnitFit:
+    """``free``'s per-unit values smoothed to straight lines: unit u's values (F,) become a_g + b s_u, with a level
+    a_g (F,) per group ``group`` (U,) and one slope b (F,) for all along ``along`` (U,) (units = blocks: group the
+    log, along the time within it; units = logs: one group, along the order recorded). Generalised least
+    squares, each unit weighted by the inverse of its covariance (units without one follow the lines). Far
+    fewer free values than one set per unit: a slow trend shows in prediction where free per-unit values
+    scatter too much to. The covariance is the free fit's; the model uses the smoothed values."""
+    U, F = free.values.shape
+    groups, g_of = np.unique(group, return_inverse=True)
+    ok = np.all(np.isfinite(free.cov.reshape(U, -1)), axis=1) & np.all(np.isfinite(free.values), axis=1)
+    s = np.asarray(along, dtype=float)
+    s = s - (s[ok].mean() if ok.any() else 0.0)
+    n = (len(groups) + 1) * F  # unknowns: the levels, then the slope
+    A, rhs = np.zeros((n, n)), np.zeros(n)
+    for u in np.flatnonzero(ok):
+        W = np.linalg.pinv(free.cov[u])
+        D = np.zeros((F, n))
+        D[:, g_of[u] * F:(g_of[u] + 1) * F] = np.eye(F)
+        D[:, -F:] = s[u] * np.eye(F)
+        A += D.T @ W @ D
+        rhs += D.T @ W @ free.values[u]
+    theta = np.linalg.lstsq(A, rhs, rcond=None)[0] if ok.any() else np.zeros(n)
+    base = np.array([shared[name] for name in free.names])
+    levels = theta[:-F].reshape(len(groups), F)
+    seen = np.zeros(len(groups), dtype=bool)
+    seen[np.unique(g_of[ok])] = True
+    levels[~seen] = base  # a group without a fitted unit keeps the shared values
+    values = levels[g_of] + s[:, None] * theta[-F:][None, :]
+    model = clone(free.model)
+    model.per_unit = UnitOffsets(free.names, free.units.of_row, values - base)
+    return PerUnitFit(free.names, free.units, values, free.cov, model)
+
+
 def _robust_cov(J, r, uw, block, U) -> np.ndarray:
     """(U, F, F) A^-1 B A^-1 per unit: A = J^T J, B the outer products of the score summed per cluster (a unit's
     windows in one block), scaled by G / (G - 1) for G clusters; NaN with fewer than 3 clusters."""

@@ -257,12 +257,19 @@ def _drift_section(d: dict, key: str) -> list[str]:
             vals = ", ".join(f"{x:.3g} ± {e:.2g}" if x is not None and e is not None else "-"
                              for x, e in zip(v["values"], v["std"]))
             lines.append(f"| {q} | {vals} | {v['p']:.1e} | {v['slope_t']:.1f} | {v['change_per_step']:+.1%} |")
+        tr = b.get("trend")
+        if tr:
+            lines += ["", f"A trend from log to log (each parameter on a straight line in the order recorded): "
+                          f"held-out error at {key} s {_f(tr['rollout_mm'][key])} mm ({tr['reduction']:+.1%}, "
+                          f"t = {tr['t_stat']:.1f})."]
     w = d.get("within")
     if w:
-        lines += ["", f"Per block of time ({w['blocks']} blocks): held-out error at {key} s "
-                      f"{_f(w['rollout_mm'][key])} mm ({w['reduction']:+.1%}, t = {w['t_stat']:.1f}; against per "
-                      f"log t = {w['t_vs_per_log']:.1f}).", "", "| quantity | trend within the logs, per minute | t |",
-                  "|---|---|---|"]
+        fr = w["free"]
+        lines += ["", f"A trend within the logs ({w['blocks']} blocks of time; each parameter on a straight line "
+                      f"in time, a level per log): held-out error at {key} s {_f(w['rollout_mm'][key])} mm "
+                      f"({w['reduction']:+.1%}, t = {w['t_stat']:.1f}; against per log t = {w['t_vs_per_log']:.1f}; "
+                      f"free per block: {_f(fr['rollout_mm'][key])} mm, {fr['reduction']:+.1%}).", "",
+                  "| quantity | trend within the logs, per minute | t |", "|---|---|---|"]
         lines += [f"| {q} | {v['change_per_min']:+.1%} | {v['slope_t']:.1f} |" for q, v in w["quantities"].items()]
     for g in d.get("given_drift", ()):
         lines.append(f"- once the drift is in, {g['effect']} lowers the error by {g['reduction']:.0%} "

@@ -108,8 +108,7 @@ def verdict(result: dict, key: str) -> dict:
 def _drift_left(result: dict, key: str) -> str:
     """What the drifting model leaves, against the noise floor."""
     d, floor = result["drift"], result["noise"]["floor_mm"][key]
-    fit = d.get("between") if any(not f.startswith("within:") for f in d["flagged"]) else d.get("within")
-    left = fit["rollout_mm"][key]
+    left = d["explains"]["rollout_mm"][key]
     if floor is None:
         return f"With the drift in, {left:.2f} mm remain at {key} s."
     return (f"With the drift in, {left:.2f} mm remain at {key} s against a noise floor of {floor:.2f} mm"

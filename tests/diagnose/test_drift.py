@@ -16,9 +16,10 @@ import pytest
 
 from cosim.cli import main
 from cosim.contract.plugins import lookup
-from cosim_plugins.diagnose.per_unit import between_logs, within_logs
+from cosim_plugins.diagnose.per_unit import PerUnitFit, Units, between_logs, clone, trend_fit, within_logs
 from cosim_plugins.diagnose.pipeline import Settings, run
 from cosim_plugins.identify import synthetic as syn
+from cosim_plugins.identify.joint import JointModel
 
 DRAG_STEP = 0.08  # relative drag increase per log
 PATHS = ("circle_+0", "racetrack_+45", "circle_-30", "racetrack_+0")
@@ -130,3 +131,36 @@ def test_per_column_parameters_step_each_column_with_its_own_values():
         assert np.allclose(batch[:, j], one.predict_t(x[:, j:j + 1], u[:, j:j + 1], 0.02)[:, 0], rtol=1e-12)
     with pytest.raises(ValueError, match="only base parameters"):
         model.set_columns({"quadratic_drag.c": cd1})
+
+
+def test_trend_fit_puts_per_unit_values_on_lines_weighted_by_their_covariance():
+    physical = lookup("model", "physical")
+    jm = JointModel(physical.from_params(syn.TRUE_PARAMS))
+    names, shared = ("k", "Fvs"), jm.params()
+    log = np.repeat(np.arange(3), 8)
+    t = np.tile(np.arange(8) * 20.0 + 10.0, 3)
+    units = Units(np.arange(24), log, t)
+    truth = np.stack([shared["k"] * (1.0 + 0.1 * log - 0.002 * t), shared["Fvs"] * (1.0 + 0.003 * t)], axis=1)
+    rng = np.random.default_rng(5)
+    sd = np.array([0.02 * shared["k"], 0.05 * abs(shared["Fvs"])])
+    cov = np.tile(np.diag(sd ** 2), (24, 1, 1))
+    cov[5] = np.nan  # a unit without a fit follows the lines
+    noisy = truth + sd * rng.standard_normal((24, 2))
+    free = PerUnitFit(names, units, noisy, cov, clone(jm))
+    smooth = trend_fit(free, log, t, shared)
+    # a level per log and one slope: far closer to the truth than the free values, the unfitted unit included
+    err_free = np.abs(np.delete(noisy - truth, 5, axis=0)).mean(0)
+    err_smooth = np.abs(smooth.values - truth).mean(0)
+    assert np.all(err_smooth < 0.7 * err_free)
+    assert np.allclose(smooth.values[5], truth[5], rtol=0.05)
+    # exact lines are kept exactly, and the model's offsets are the values less the shared ones
+    exact = trend_fit(PerUnitFit(names, units, truth, np.tile(np.diag(sd ** 2), (24, 1, 1)), clone(jm)), log, t,
+                      shared)
+    assert np.allclose(exact.values, truth, rtol=1e-9)
+    assert np.allclose(exact.model.per_unit.offsets, truth - [shared["k"], shared["Fvs"]], rtol=1e-9)
+    # one group along the order recorded: a trend from log to log
+    order = np.arange(5.0)
+    line = np.stack([shared["k"] * (1 - 0.04 * order), np.full(5, shared["Fvs"])], axis=1)
+    per_log = PerUnitFit(names, Units(np.arange(5), np.arange(5), np.zeros(5)), line,
+                         np.tile(np.diag(sd ** 2), (5, 1, 1)), clone(jm))
+    assert np.allclose(trend_fit(per_log, np.zeros(5), order, shared).values, line, rtol=1e-9)
