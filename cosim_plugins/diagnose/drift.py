@@ -138,13 +138,13 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
 
     between = within = None
     if n_logs >= 2:
-        starts = sample_per_unit(train_starts, logs, fitter.s.seed + 5)
-        say(f"drift: {', '.join(names)} free per log ({n_logs} logs, {len(starts)} windows) ...")
-        between = fit_per_unit(jm, ttr, starts, logs, names, lead, k_ref, cluster)
+        starts_log = sample_per_unit(train_starts, logs, fitter.s.seed + 5)
+        say(f"drift: {', '.join(names)} free per log ({n_logs} logs, {len(starts_log)} windows) ...")
+        between = fit_per_unit(jm, ttr, starts_log, logs, names, lead, k_ref, cluster)
     if blocks.n > n_logs:
-        starts = sample_per_unit(train_starts, blocks, fitter.s.seed + 6)
-        say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts)} windows) ...")
-        within = fit_per_unit(jm, ttr, starts, blocks, names, lead, k_ref, cluster)
+        starts_block = sample_per_unit(train_starts, blocks, fitter.s.seed + 6)
+        say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts_block)} windows) ...")
+        within = fit_per_unit(jm, ttr, starts_block, blocks, names, lead, k_ref, cluster)
     trends = {}  # within logs, per quantity; their scatter also widens the between-log test
     flagged = {}  # flag -> the fit that shows it (a PerUnitFit) and its held-out figures
     if between is not None:
@@ -174,7 +174,10 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
                 v["t_held"] = held_t(trend_block, n, ev_block)
                 v["change_per_log"] = v["change_per_min"] * log_min
                 if v["p"] < P_FLAG and v["t_held"] >= MIN_T and abs(v["change_per_log"]) >= MIN_CHANGE:
-                    flagged[f"within:{n}"] = (trend_block, w, _within_words(n, v), "a trend within the logs")
+                    flagged[f"within:{n}"] = (trend_block, w, _within_words(n, v), "a trend within the logs",
+                                              lambda m: trend_fit(fit_per_unit(m, ttr, starts_block, blocks, names,
+                                                                               lead, k_ref, cluster), blocks.log,
+                                                                  blocks.t_s, m.params()))
     if between is not None:
         b["quantities"] = {n: {**between_logs(x, sd, order, trends.get(n, {}).get("scatter", 1.0)),
                                "values": _list(x), "std": _list(sd)}
@@ -186,21 +189,24 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
             if free_ok:  # the logs differ, in any order
                 v["t_held"] = held_t(between, n, ev_log)
                 if v["p"] < P_FLAG and v["t_held"] >= MIN_T and v["excess_sd"] >= MIN_SPREAD:
-                    flagged[n] = (between, b, _between_words(n, v), "per log")
+                    flagged[n] = (between, b, _between_words(n, v), "per log",
+                                  lambda m: fit_per_unit(m, ttr, starts_log, logs, names, lead, k_ref, cluster))
                     continue
             if trend_ok:  # the logs change in the order recorded
                 v["t_held_trend"] = held_t(trend_log, n, ev_tl)
                 p_slope = float(2 * ndtr(-abs(v["slope_t"])))
                 if p_slope < P_FLAG and v["t_held_trend"] >= MIN_T and abs(v["change_per_step"]) >= MIN_SPREAD:
-                    flagged[n] = (trend_log, b["trend"], _between_words(n, v), "a trend from log to log")
+                    flagged[n] = (trend_log, b["trend"], _between_words(n, v), "a trend from log to log",
+                                  lambda m: trend_fit(fit_per_unit(m, ttr, starts_log, logs, names, lead, k_ref,
+                                                                   cluster), np.zeros(n_logs), order, m.params()))
     order_flags = [f for f in flagged if not f.startswith("within:")] + [f for f in flagged if f.startswith("within:")]
     out["flagged"] = order_flags
     out["words"] = [flagged[f][2] for f in order_flags]
     if order_flags:
-        fit, figures, _, label = flagged[order_flags[0]]  # between before within: it explains more
+        fit, figures, _, label, remake = flagged[order_flags[0]]  # between before within: it explains more
         out["explains"] = {"fit": label, **{k: figures[k] for k in ("rollout_mm", "reduction", "t_stat")}}
         if chosen:
-            out["given_drift"] = _effects_given_drift(fit, fitter, chosen, floor, say)
+            out["given_drift"] = _effects_given_drift(final, fit, remake, fitter, chosen, floor, say)
     return out
 
 
@@ -215,9 +221,13 @@ def _matters(reduction: float, t_stat: float, before_mm: float, after_mm: float,
     return excess > 0 and before_mm - after_mm >= EXCESS_SHARE * excess
 
 
-def _effects_given_drift(fit, fitter, chosen, floor, say) -> list:
-    """Each chosen effect checked again with the drift in: the drifting model refitted without it, and the
-    verdict's tests of its drop (:func:`~.verdict.passes`). [{"effect", "reduction", "t_stat", "kept"}]."""
+def _effects_given_drift(final, fit, remake, fitter, chosen, floor, say) -> list:
+    """Each chosen effect checked again with the drift in: ``fit`` (a PerUnitFit of ``final``) is the drift that
+    showed, ``remake(model)`` fits it the same way (per log, or a trend) on another model; the model with the
+    effect and its drift is compared with the model refitted without the effect and its drift fitted again, by
+    the verdict's tests of the drop (:func:`~.verdict.passes`). Refitting the drift too matters: offsets fitted
+    beside an effect have already given it part of their work.
+    [{"effect", "reduction", "t_stat", "kept"}]."""
     from cosim_plugins.diagnose.fitting import reduction_of
     from cosim_plugins.diagnose.verdict import passes
 
@@ -225,9 +235,9 @@ def _effects_given_drift(fit, fitter, chosen, floor, say) -> list:
     drifted = fitter.evaluate(fit.model)
     out = []
     for name in chosen:
-        keep = [e for e in fit.model.effects if e.name != name and e not in fitter.added]
+        keep = [e for e in final.model.effects if e.name != name and e not in fitter.added]
         say(f"drift: is {name} still needed once the drift is in? refitting without it ...")
-        without = fitter.without(drifted, keep)
+        without = fitter.evaluate(remake(fitter.without(final, keep).model).model)
         before = without.summary["rollout_mm"][key]
         entry = {"effect": name, "rollout_mm": drifted.summary["rollout_mm"],
                  "reduction": reduction_of(before, drifted.summary["rollout_mm"][key]),
