@@ -1,8 +1,10 @@
-"""Drift between logs: flagged with the identifiable combination that moves, never on logs of one plant.
+"""Drift between logs and within them: flagged with the identifiable combination that moves, never on logs of
+one plant.
 
 The logs come from the project's synthetic closed loop (:mod:`cosim_plugins.identify.synthetic`) with the
 plain physical model as the plant, one plant per log: the drag (Cd0, Cd1, Cl0 together, as a change of the
-water's viscosity does) grows by :data:`DRAG_STEP` from log to log, or stays put.
+water's viscosity does) grows by :data:`DRAG_STEP` from log to log, or stays put; or the net weight grows
+within each log (:data:`WEIGHT_CHANGE`).
 """
 
 from __future__ import annotations
@@ -82,6 +84,39 @@ def test_no_drift_flagged_on_logs_of_one_plant(tmp_path):
     r = run(_logs(tmp_path, 0.0), settings=Settings(candidates=[])).result
     assert r["drift"]["flagged"] == []
     assert r["verdict"]["status"] != "drift"
+
+
+WEIGHT_CHANGE = 0.2  # the net weight grows by this over each log
+
+
+def _weight_drifting_logs(folder, rows: int = 4000) -> list:
+    """Two 80 s logs whose net weight grows linearly by :data:`WEIGHT_CHANGE` from start to end (the plant is
+    stepped once per row, both paths at once)."""
+    physical = lookup("model", "physical")
+    cases = syn.paper_cases()
+    plant = physical.from_params(syn.TRUE_PARAMS)
+    row = [0]
+
+    def drifting(x, u, dt_s):
+        plant.set_params({"Fvs": syn.TRUE_PARAMS["Fvs"] * (1.0 + WEIGHT_CHANGE * row[0] / rows)})
+        row[0] += 1
+        return plant.predict(x, u, dt_s)
+
+    files = syn.write_cases(folder, drifting, rows, {n: cases[n] for n in ("circle_+0", "racetrack_+45")}, seed=3,
+                            defects=syn.Defects(noise_mm=0.1))
+    return [str(p) for p in files]
+
+
+def test_a_weight_drifting_within_each_log_is_flagged_as_a_trend_of_the_sinking_speed(tmp_path):
+    r = run(_weight_drifting_logs(tmp_path), settings=Settings(candidates=[])).result
+    d = r["drift"]
+    assert d["flagged"] == ["within:sink_speed_mm_s"]
+    v = d["within"]["quantities"]["sink_speed_mm_s"]
+    # Fvs grows by 20 % over each log's 80 s: the sinking speed by ~15 % a minute (relative to the mean)
+    assert v["change_per_min"] == pytest.approx(WEIGHT_CHANGE * 60.0 / 80.0 / (1 + WEIGHT_CHANGE / 2), rel=0.25)
+    assert d["within"]["reduction"] >= 0.05 and d["within"]["t_vs_per_log"] >= 2.0
+    assert d["explains"]["fit"] == "a trend within the logs"
+    assert r["verdict"]["status"] == "drift" and "per minute within the logs" in r["verdict"]["explanation"]
 
 
 def test_bad_drift_options_name_the_problem(drifting, tmp_path, capsys):
