@@ -43,6 +43,8 @@ shared) as a candidate ranked like an effect, by its held-out drop.
 
 from __future__ import annotations
 
+from typing import Callable, NamedTuple
+
 import numpy as np
 from scipy.special import ndtr
 
@@ -146,7 +148,7 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
         say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts_block)} windows) ...")
         within = fit_per_unit(jm, ttr, starts_block, blocks, names, lead, k_ref, cluster)
     trends = {}  # within logs, per quantity; their scatter also widens the between-log test
-    flagged = {}  # flag -> the fit that shows it (a PerUnitFit) and its held-out figures
+    flagged: dict[str, _Shown] = {}
     if between is not None:
         ev_log, summ, red, t = held_out(between)
         out["between"] = b = {"rollout_mm": summ, "reduction": red, "t_stat": t}
@@ -174,7 +176,7 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
                 v["t_held"] = held_t(trend_block, n, ev_block)
                 v["change_per_log"] = v["change_per_min"] * log_min
                 if v["p"] < P_FLAG and v["t_held"] >= MIN_T and abs(v["change_per_log"]) >= MIN_CHANGE:
-                    flagged[f"within:{n}"] = (trend_block, w, _within_words(n, v), "a trend within the logs",
+                    flagged[f"within:{n}"] = _Shown(trend_block, w, _within_words(n, v), "a trend within the logs",
                                               lambda m: trend_fit(fit_per_unit(m, ttr, starts_block, blocks, names,
                                                                                lead, k_ref, cluster), blocks.log,
                                                                   blocks.t_s, m.params()))
@@ -189,25 +191,36 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
             if free_ok:  # the logs differ, in any order
                 v["t_held"] = held_t(between, n, ev_log)
                 if v["p"] < P_FLAG and v["t_held"] >= MIN_T and v["excess_sd"] >= MIN_SPREAD:
-                    flagged[n] = (between, b, _between_words(n, v), "per log",
+                    flagged[n] = _Shown(between, b, _between_words(n, v), "per log",
                                   lambda m: fit_per_unit(m, ttr, starts_log, logs, names, lead, k_ref, cluster))
                     continue
             if trend_ok:  # the logs change in the order recorded
                 v["t_held_trend"] = held_t(trend_log, n, ev_tl)
                 p_slope = float(2 * ndtr(-abs(v["slope_t"])))
                 if p_slope < P_FLAG and v["t_held_trend"] >= MIN_T and abs(v["change_per_step"]) >= MIN_SPREAD:
-                    flagged[n] = (trend_log, b["trend"], _between_words(n, v), "a trend from log to log",
+                    flagged[n] = _Shown(trend_log, b["trend"], _between_words(n, v), "a trend from log to log",
                                   lambda m: trend_fit(fit_per_unit(m, ttr, starts_log, logs, names, lead, k_ref,
                                                                    cluster), np.zeros(n_logs), order, m.params()))
     order_flags = [f for f in flagged if not f.startswith("within:")] + [f for f in flagged if f.startswith("within:")]
     out["flagged"] = order_flags
-    out["words"] = [flagged[f][2] for f in order_flags]
+    out["words"] = [flagged[f].words for f in order_flags]
     if order_flags:
-        fit, figures, _, label, remake = flagged[order_flags[0]]  # between before within: it explains more
-        out["explains"] = {"fit": label, **{k: figures[k] for k in ("rollout_mm", "reduction", "t_stat")}}
+        shown = flagged[order_flags[0]]  # between before within: a drift between logs explains more
+        out["explains"] = {"fit": shown.label, **{k: shown.figures[k] for k in ("rollout_mm", "reduction", "t_stat")}}
         if chosen:
-            out["given_drift"] = _effects_given_drift(final, fit, remake, fitter, chosen, floor, say)
+            out["given_drift"] = _effects_given_drift(final, shown.fit, shown.remake, fitter, chosen, floor, say)
     return out
+
+
+class _Shown(NamedTuple):
+    """A flag's evidence: the fit that shows it, its held-out figures (diagnosis.json's), the verdict's words,
+    the fit's name, and ``remake(model) -> PerUnitFit``: the same fit on another model."""
+
+    fit: object
+    figures: dict
+    words: str
+    label: str
+    remake: Callable
 
 
 def _matters(reduction: float, t_stat: float, before_mm: float, after_mm: float, floor_mm: float | None) -> bool:
