@@ -86,3 +86,23 @@ def test_the_results_check_fails_on_a_missing_quick_or_stale_digest(tmp_path):
         assert problem and reason in problem and doc_outputs.RESULTS_REMAKE in problem
     page.write_text(f"# Results\n\n{README_START}\n{results_stamp(now, False, 223.0)}\n\n{README_END}\n")
     assert doc_outputs.results_problem(page) is None
+
+
+def test_the_code_digest_sees_code_and_scenarios_but_not_docstrings_or_imports(tmp_path):
+    from cosim_plugins.paper.code_digest import code_digest
+
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "m.py").write_text('"""Doc."""\nimport os\n\n\ndef f(x):\n    """Twice x."""\n    return 2 * x\n')
+    (pkg / "s.yaml").write_text("duration_s: 30\n")
+    names = ("pkg",)
+    before = code_digest(names, root=tmp_path)
+    (pkg / "m.py").write_text('"""Other doc."""\nimport sys\nimport os\n\n\ndef f(x):\n    return 2 * x\n')
+    assert code_digest(names, root=tmp_path) == before
+    (pkg / "m.py").write_text('def f(x):\n    return 3 * x\n')
+    changed = code_digest(names, root=tmp_path)
+    assert changed != before
+    (pkg / "s.yaml").write_text("duration_s: 31\n")
+    assert code_digest(names, root=tmp_path) != changed
+    with pytest.raises(FileNotFoundError, match="gone"):
+        code_digest(("gone",), root=tmp_path)
