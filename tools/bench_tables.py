@@ -324,6 +324,33 @@ def hidden_effects_table() -> str:
     return table(["hidden in the plant FMU", "ranked first", "held-out error at 1.0 s", "reduction", "fitted"], rows)
 
 
+def blind_table() -> str:
+    """docs/diagnose/validation.md: the blind bench's two full draws (seed 3, then seed 2)."""
+    outs = [load(name)["output"] for name in ("blind_s3", "blind_s2")]
+
+    def frac(part: float, n: int) -> str:
+        return f"{of(part, n)} ({part:.3f})"
+
+    rows = [
+        [f"library effects ranked first, all {outs[0]['library']['cases']} cases",
+         *[frac(o["library"]["top1"], o["library"]["cases"]) for o in outs], ">= 0.90"],
+        [f"the same over the {outs[0]['library']['detectable']} cases a perfect diagnosis can see (true form >= 10 %)",
+         *[frac(o["library"]["top1_detectable"], o["library"]["detectable"]) for o in outs], ""],
+        ["detectable cases first or tied with the first (paired t < 3, the verdict says so)",
+         *[of(o["library"]["top1_or_tied_detectable"], o["library"]["detectable"]) for o in outs], ""],
+        ["median achieved / true-form reduction (detectable cases)",
+         *[f"{o['library']['median_reduction_ratio']:.3f}" for o in outs], ">= 0.7"],
+        [f"false alarms on the {outs[0]['no_effect']['cases']} cases with nothing hidden (a named effect; a discovered "
+         "form with >= 10 % and t >= 3)",
+         *[f"{o['no_effect']['false_alarms']} and {o['no_effect']['discovered_alarms']}" for o in outs], "0"],
+        ["outside effects whose discovered form reaches half the true form's reduction",
+         *[frac(o["outside"]["discovered_ok"], o["outside"]["discovered_ok_of"]) for o in outs], ">= 0.75"],
+        ["time per case, median (max)",
+         *[f"{o['seconds_per_case']:g} s ({o['seconds_per_case_max']:.0f} s)" for o in outs], ""],
+    ]
+    return table(["figure", "seed 3 (new)", "seed 2", "target"], rows)
+
+
 #: Every table a page may mark, by name: what renders it (from the data files it loads).
 TABLES: dict[str, Callable[[], str]] = {
     "benchmarks": benchmarks_table,
@@ -331,6 +358,7 @@ TABLES: dict[str, Callable[[], str]] = {
     "diagnose-drift-bench": drift_table,
     "diagnose-several-effects-bench": several_effects_table,
     "diagnose-hidden-effects": hidden_effects_table,
+    "diagnose-blind-bench": blind_table,
 }
 
 
