@@ -1,6 +1,7 @@
 """The docs show what the commands print today: every marked output is one `tools/doc_outputs.py`
 makes; the quick ones are re-run and compared (wall-clock figures masked); the slow ones must
-have been made from the code as it is (the digest in their marker)."""
+have been made from the code as it is (the digest in their marker), and so must the paper's results
+in `docs/results.md` (the digest `cosim reproduce --docs` writes into its block)."""
 
 from __future__ import annotations
 
