@@ -161,9 +161,10 @@ def results_problem(page: Path = RESULTS_PAGE) -> str | None:
         return f"{where}: the results block carries no code digest; remake it: {RESULTS_REMAKE}"
     if stamp[1] != "full":
         return f"{where}: the results block was made by a --quick run; remake it: {RESULTS_REMAKE}"
-    if stamp[0] != results_digest(ROOT):
+    now = results_digest(ROOT)
+    if stamp[0] != now:
         return (f"{where}: the results are stale (the code they depend on changed since they were made: "
-                f"digest {stamp[0]}, now {results_digest(ROOT)}); remake them: {RESULTS_REMAKE}")
+                f"digest {stamp[0]}, now {now}); remake them: {RESULTS_REMAKE}")
     return None
 
 
