@@ -31,9 +31,11 @@ venv: $(STAMP)
 docs: $(STAMP)
 	$(VENV)/bin/mkdocs build --strict
 
-# Every command output the docs show, made again (tools/doc_outputs.py; --quick: the fast ones).
+# Every command output the docs show, made again (tools/doc_outputs.py; --quick: the fast ones), and
+# the measured tables rendered from the benchmarks' kept JSON in docs/benchmarks/data (tools/bench_tables.py).
 doc-outputs: $(STAMP)
 	$(PY) tools/doc_outputs.py
+	$(PY) tools/bench_tables.py
 
 # torch is pinned to the local CPU wheel first so nothing pulls CUDA packages.
 $(STAMP): pyproject.toml

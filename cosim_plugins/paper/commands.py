@@ -61,6 +61,11 @@ def cmd_reproduce(args) -> int:
     if args.page and not args.page.is_file():
         raise UserError(f"--docs {args.page} does not exist")
 
+    digest = None
+    if args.page:  # the code the results are made from, before a change during the run could alter it
+        from cosim_plugins.paper.code_digest import results_digest
+
+        digest = results_digest()
     report = reproduce(args.out, quick=args.quick, jobs=parse_jobs(args.jobs))
     print(f"report: {args.out / 'report.md'} (and report.html, report.json); {report['wall_time_s']:.0f} s")
     empty = filled((args.out / "report.md").read_text())
@@ -69,6 +74,6 @@ def cmd_reproduce(args) -> int:
     if args.page:
         from cosim_plugins.paper.reproduce import update_results
 
-        update_results(args.out, args.page, args.page.parent / "results")
+        update_results(args.out, args.page, args.page.parent / "results", digest)
         print(f"updated the results in {args.page}")
     return 0

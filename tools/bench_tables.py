@@ -1,0 +1,463 @@
+"""Render the docs' measured tables from the benchmarks' kept JSON, and check that none was edited by hand.
+
+Each benchmark's printed JSON is kept in ``docs/benchmarks/data/NAME.json``, wrapped in a header::
+
+    {"command": "benchmarks/plant.py", "date": "2026-11-25", "commit": "010912a",
+     "machine_load": "load average 3.1 / 2.5 / 2.2 (2 CPUs)", "source": "printed by the benchmark",
+     "output": {... exactly what the benchmark printed ...}}
+
+``source`` is ``printed by the benchmark`` or, for figures kept only on a page, ``transcribed from
+the page of DATE`` (then ``output`` holds only the figures that page stated, in the benchmark's own
+keys where it has them). A page marks a table with ``<!-- table: NAME -->`` ... ``<!-- /table -->``;
+:data:`TABLES` says which data files table ``NAME`` renders and how. Commands::
+
+    python tools/bench_tables.py                  # rewrite every marked table from its data
+    python tools/bench_tables.py --check          # exit 1 naming each table that differs
+    python tools/bench_tables.py record NAME [--load TEXT] -- benchmarks/plant.py --repeats 5
+                                                  # run a benchmark, keep its JSON as data/NAME.json
+
+``tests/docs/test_bench_tables.py`` fails when a page's table differs from what its data render.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "docs" / "benchmarks" / "data"
+PAGES = ("docs",)
+MARK = re.compile(r"<!-- table: (?P<name>[\w-]+) -->\n(?P<body>.*?)<!-- /table -->", re.S)
+PRINTED = "printed by the benchmark"
+HEADER = ("command", "date", "commit", "machine_load", "source", "output")
+
+
+def load(name: str) -> dict:
+    """The kept data ``docs/benchmarks/data/NAME.json``: its header and ``output``; a clear error if
+    the file is missing or lacks a header field."""
+    path = DATA / f"{name}.json"
+    if not path.is_file():
+        raise SystemExit(f"no data {path.relative_to(ROOT)}: record it (tools/bench_tables.py record {name} -- ...)")
+    data = json.loads(path.read_text())
+    missing = [k for k in HEADER if k not in data]
+    if missing:
+        raise SystemExit(f"{path.relative_to(ROOT)}: header lacks {', '.join(missing)}")
+    return data
+
+
+def table(header: list[str], rows: list[list[str]]) -> str:
+    """A Markdown table (``header``, then ``rows``, each a list of cells), ending in a newline."""
+    def line(cells: list[str]) -> str:
+        return "|" + "|".join(f" {cell.replace('|', chr(92) + '|')} " if cell else " " for cell in cells) + "|"
+
+    return "\n".join([line(header), line(["---"] * len(header)), *map(line, rows)]) + "\n"
+
+
+def of(part: float | None, cases: int, bold_below: float | None = None) -> str:
+    """A fraction of ``cases`` as "k of n" (``-`` when nothing was counted), bold when under ``bold_below``."""
+    if part is None or not cases:
+        return "-"
+    text = f"{round(part * cases)} of {cases}"
+    return f"**{text}**" if bold_below is not None and part < bold_below else text
+
+
+def when(data: dict) -> str:
+    """When and on what a figure was measured, from a data file's header; transcribed ones say so."""
+    note = f"{data['date']}, {data['machine_load']}"
+    return note if data["source"] == PRINTED else f"{note}; transcribed"
+
+
+# ---------------------------------------------------------------- the benchmarks page, one row a script
+
+
+def _plant(d: dict) -> str:
+    return f"{d['output']['wall_s']:.2f} s for {d['output']['sim_s']:g} s"
+
+
+def _loop_against(d: dict) -> str:
+    layouts, parts, n = d["output"]["layouts"], [], d.get("alternations")
+    for key, label in (("one_process", "one process"), ("processes", "`--processes`")):
+        if key in layouts:
+            lay = layouts[key]
+            n = n or len(lay["this"].get("runs", ()))
+            parts.append(f"{label} {lay['against']['realtime_factor']:g} -> {lay['this']['realtime_factor']:g}x "
+                         f"({lay['ratio']:g}x)")
+    return f"`--against` {d['against']}, {n} runs each, alternated: " + ", ".join(parts)
+
+
+def _components(d: dict) -> str:
+    step = d["output"]["step_us"]
+    return ", ".join(f"{name} {v['median']:g}" for name, v in step.items()) + \
+        f" us (medians of {d['output']['repeats']} repeats)"
+
+
+def _fit(d: dict) -> str:
+    models = d["output"]["models"]
+    names = ("physical", "sindy-nonlinear", "sindy-linear", "mlp")
+    return " / ".join(f"{models[n]['train_time_s']:g}" for n in names) + " s"
+
+
+def _kf(d: dict) -> str:
+    rows = [r for r in d["output"] if "model" in r]
+    pred = [r["predict_us"]["median"] for r in rows]
+    gap = [r["gap_420ms_us"] / 1e3 for r in rows]
+    each = ", ".join(f"{r['model']} {r['predict_us']['median']:g} us / {r['gap_420ms_us'] / 1e3:.2f} ms" for r in rows)
+    return f"{min(pred):g}-{max(pred):g} us, {min(gap):.2f}-{max(gap):.2f} ms ({each})"
+
+
+def _mpc(d: dict) -> str:
+    o = d["output"]
+    return f"{o['median_ms']:.2f} / {o['p99_ms']:.2f} ms over {o['solves']} solves ({o['backend']})"
+
+
+def _camera(d: dict) -> str:
+    o = d["output"]
+    return (f"median {o['pair_ms']['median']:.2f} ms, p99 {o['pair_ms']['p99']:.2f} ms "
+            f"({o['whole_frame_ms']:.2f} ms searching the whole frames)")
+
+
+def _diagnose(d: dict) -> str:
+    o = d["output"]
+    return f"{o['diagnose_wall_s']:g} s with `--jobs {o['jobs']}`, verdict {o['verdict']}"
+
+
+def _archive(d: dict) -> str:
+    o = d["output"]
+    runs = ", ".join(f"{r['logs']} logs {r['wall_s']:.1f} s / {r['peak_mb']:,.0f} MB" for r in o["runs"])
+    return f"`--jobs {o['jobs']}`: {runs}; every size names " + \
+        ", ".join(sorted({e for r in o["runs"] for e in r["effects"]}))
+
+
+def _blind(d: dict) -> str:
+    o = d["output"]
+    lib, none, out = o["library"], o["no_effect"], o["outside"]
+    return (f"seed {o['seed']}: top1 {lib['top1']:.3f} over all {lib['cases']} library cases, "
+            f"{lib['top1_detectable']:.3f} over the {lib['detectable']} detectable; ratio "
+            f"{lib['median_reduction_ratio']:.3f}; {none['false_alarms']} false alarms in {none['cases']}; "
+            f"discovered_ok {out['discovered_ok']:.3f}; {o['seconds_per_case']:g} s per case")
+
+
+def _sweep_jobs(d: dict) -> str:
+    o = d["output"]
+    same = "rows and logs identical" if o["rows_identical_but_timings"] and o["logs_identical"] else \
+        "rows or logs differ"
+    return f"{o['jobs_1_wall_s']['median']:g} / {o['jobs_2_wall_s']['median']:g} s, ratio {o['ratio']:.2f}, {same}"
+
+
+def _hosts(d: dict) -> str:
+    o = d["output"]
+    same = "logs identical" if o["logs_identical"] else "logs differ"
+    return f"{o['two_hosts_tls']['realtime_factor']:g}x / {o['loopback_tcp']['realtime_factor']:g}x real time, {same}"
+
+
+def _mutation(d: dict) -> str:
+    out = d["output"]
+    parts = []
+    for label, m in out["modules"].items():
+        reached = f", {m['not_reached']} of {m['not_reached_of']} not reached" if "not_reached" in m else ""
+        parts.append(f"{label} {m['score']:.3f} ({m['killed']} of {m['of']}{reached})")
+    first = out.get("first_run_not_repeated")
+    text = ", ".join(parts)
+    return text + (f"; first run, not repeated: {', '.join(f'{k} {v:.3f}' for k, v in first.items())}" if first else "")
+
+
+def _soak(d: dict) -> str:
+    parts = []
+    for r in d["output"]["runs"]:
+        layout = "`--processes`" if r["layout"] == "processes" else "one process"
+        nodes = f", largest node {r['nodes_peak_mb']:.1f} MB" if r.get("nodes_peak_mb") else ""
+        parts.append(f"{layout} {r['hours']:g} h {r['peak_mb']:.1f} MB{nodes}")
+    return ", ".join(parts)
+
+
+def _realtime(d: dict) -> str:
+    o = d["output"]
+    layouts = [k for k in ("one", "processes") if k in o]
+    missed = " / ".join(f"{o[k]['missed']}" for k in layouts)
+    p99 = " / ".join(f"{o[k]['lateness_ms']['p99']:g}" for k in layouts)
+    return f"{missed} missed of {o[layouts[0]]['ticks']} ticks; lateness p99 {p99} ms ({' / '.join(layouts)})"
+
+
+@dataclass(frozen=True)
+class Row:
+    """One benchmark of the benchmarks page: its script, what it measures, its budget, and how each of its
+    data files reads in the "last measured" cell."""
+
+    script: str
+    figure: str
+    budget: str
+    data: tuple[str, ...]
+    cell: Callable[[dict], str]
+
+
+ROWS = (
+    Row("plant.py", "290 s of simulated time through fmpy at 20 ms steps", "`wall_s` <= 1.0", ("plant",), _plant),
+    Row("loop.py", "real-time factor of the racetrack PI loop, one process / one process per component; "
+        "`--against DIR`: this checkout against another, run by run alternately", ">= 100 / >= 25",
+        ("loop_against_785565c", "loop_against_d12c65a", "loop_against_d12c65a_soak"), _loop_against),
+    Row("components.py", "each racetrack component's `step()` alone, replayed on a run's recorded inputs "
+        "(checked against the recorded outputs)", "-", ("components",), _components),
+    Row("fit.py", "training time of each model on 174,000 samples (physical / SINDy nonlinear / SINDy linear / MLP)",
+        "physical <= 15 s, SINDy nonlinear <= 5 s, SINDy linear <= 1 s, MLP <= 30 s", ("fit",), _fit),
+    Row("kf.py", "Kalman filter predict step and a 420 ms gap, per model", "<= 50 us, <= 1 ms", ("kf",), _kf),
+    Row("mpc.py", "MPC solve time over a racetrack run (median / p99)", "median <= 1.5 ms, p99 <= 5 ms",
+        ("mpc",), _mpc),
+    Row("camera.py", "detection and triangulation of one rendered frame pair at 800 x 600 (the frames made "
+        "beforehand; each pair's minimum over 5 passes)", "`pair_ms` median <= 2 ms", ("camera",), _camera),
+    Row("diagnose.py", "`cosim diagnose` on five 3,000-row logs", "<= 20 s (round 3)",
+        ("diagnose_jobs2", "diagnose_jobs1"), _diagnose),
+    Row("archive.py", "`cosim diagnose` on 5, 20 and 120 logs of 60 s from the blind bench's simulator "
+        "(a background flow hidden): wall time, peak memory, the named effects",
+        "2 hours <= 3 min and <= 3 GB, the verdict of 20 logs", ("archive",), _archive),
+    Row("blind.py", "`cosim diagnose` on logs of an independent simulator, 60 random cases "
+        "(see [How diagnose is validated](diagnose/validation.md))",
+        "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75", ("blind_s3", "blind_s2"), _blind),
+    Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
+        "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
+    Row("hosts_loop.py", "the racetrack loop over mutual TLS between two loopback addresses (a run over two "
+        "hosts, without the network) against loopback TCP", "-", ("hosts_loop",), _hosts),
+    Row("mutation.py", "mutmut on the modules where a silent bug is dangerous, each with its own tests: score, "
+        "killed of mutants less equivalent ([Testing](testing.md))", ">= 0.85 a module", ("mutation",), _mutation),
+    Row("soak.py", "the racetrack for hours of simulated time (1 h and 12 h in one process, 1 h and 12 h with "
+        "`--processes`): peak memory", "12 h peak within 10 % of 1 h, both <= 400 MB",
+        ("soak_one_process", "soak_processes"), _soak),
+    Row("realtime.py", "the racetrack paced at real time, one process / `--processes`: missed ticks, lateness",
+        "missed <= 0.1 %, p99 <= 2 ms", ("realtime",), _realtime),
+)
+
+
+def benchmarks_table() -> str:
+    """The benchmarks page's table: per script, what it measures, its budget and each kept measurement."""
+    rows = []
+    for row in ROWS:
+        kept = [load(name) for name in row.data]
+        cell = "; ".join(f"{row.cell(d)} ({when(d)}, [data](benchmarks/data/{name}.json))"
+                         for name, d in zip(row.data, kept))
+        rows.append([f"`benchmarks/{row.script}`", row.figure, row.budget, cell])
+    return table(["script", "figure", "budget", "measured (newest last)"], rows)
+
+
+# ---------------------------------------------------------------- the diagnose pages
+
+
+def archive_table() -> str:
+    """docs/diagnose/drift.md: each archive size's wall time, peak memory and named effects."""
+    runs = load("archive")["output"]["runs"]
+    return table(["logs", "hours", "rows", "wall", "peak memory (the process and its largest worker)", "named"],
+                 [[str(r["logs"]), str(r["hours"]), f"{r['rows']:,}", f"{r['wall_s']:.1f} s", f"{r['peak_mb']:,.0f} MB",
+                   ", ".join(r["effects"]) or "(none)"] for r in runs])
+
+
+DRIFT_SEEDS = (("blind_drift_s21", "seed 21 (first draw)"), ("blind_drift_s22", "seed 22 (stopped)"),
+               ("blind_drift_s23", "seed 23 (fresh, final code)"))
+
+
+def drift_table() -> str:
+    """docs/diagnose/drift.md: the blind bench's drift and none groups, per seed (bold: a target missed)."""
+    outs = [load(name)["output"] for name, _ in DRIFT_SEEDS]
+
+    def flags(o: dict) -> str:
+        checked, false = o["no_effect"].get("drift_checked", 0), o["no_effect"]["drift_false_flags"]
+        text = f"{false} of {checked}"
+        return f"**{text}**" if false else text
+
+    def alarms(o: dict) -> str:
+        n = o["no_effect"]["cases"]
+        return f"{o['no_effect']['false_alarms']} of {n}" if n else "-"
+
+    def seconds(o: dict) -> str:
+        return f"{o['seconds_per_case']:.0f} s" if o.get("seconds_per_case") is not None else ""
+
+    rows = [
+        ["`drift.flagged`: a drift flagged", *[of(o["drift"]["flagged"], o["drift"]["cases"], 0.8) for o in outs],
+         ">= 0.8"],
+        ["`drift.right`: a quantity the drawn parameter moves, between or within as drawn",
+         *[of(o["drift"]["right"], o["drift"]["cases"]) for o in outs], ""],
+        ["`drift.named`: an effect named (nothing is hidden)", *[str(o["drift"]["named"]) for o in outs], ""],
+        ["`no_effect.drift_false_flags` (steady controls and `none` cases)", *[flags(o) for o in outs], "0"],
+        ["`no_effect.false_alarms` (`none` cases)", *[alarms(o) for o in outs], "0"],
+        ["time per case (two at once, a busy machine)", *[seconds(o) for o in outs], ""],
+    ]
+    return table(["figure", *[label for _, label in DRIFT_SEEDS], "target"], rows)
+
+
+def several_effects_table() -> str:
+    """docs/diagnose/several-effects.md: the blind bench's multi and lookalike groups, seed 8."""
+    o = load("blind_groups_s8")["output"]
+    multi, look = o["multi"], o["lookalike"]
+    after = round((look["resolved"] - look["named_at_once"]) * look["cases"])
+    rows = [
+        ["`multi.all_named`: every hidden library effect named", of(multi["all_named"], multi["cases"]), ">= 0.8"],
+        ["`multi.visible_named`: every hidden library effect that its true form alone shows (>= 10 %) named",
+         of(multi["visible_named"], multi["cases"]), ""],
+        ["`multi.extra_named`: a library effect named that is not hidden", str(multi["extra_named"]), "<= 1"],
+        ["`lookalike.wrong_named`: a wrong effect named without a group", str(look["wrong_named"]), "0"],
+        ["`lookalike.resolved`: named right at once, or declared and named right after the experiment",
+         of(look["resolved"], look["cases"]), ">= 0.8"],
+        ["... named right at once", of(look["named_at_once"], look["cases"]), ""],
+        ["... declared as a group, the experiment flown", f"{look['declared']}, of which {after} named right after",
+         ""],
+        ["time per case (2 or 3 diagnoses, two cases at once, a busy machine)",
+         f"{o['seconds_per_case']:.0f} s median", ""],
+    ]
+    return table(["figure", "seed 8", "target"], rows)
+
+
+def hidden_effects_table() -> str:
+    """docs/diagnose/walkthrough.md: the diagnosis of the plant with each effect hidden."""
+    cases = load("walkthrough_hidden_effects")["output"]["cases"]
+    rows = []
+    for c in cases:
+        before, after = c["held_out_error_mm"]["before"], c["held_out_error_mm"].get("after")
+        error = f"{before:.2f} -> {after:.2f} mm" if after is not None else \
+            f"{before:.2f} mm, floor {c['noise_floor_mm']:.2f} mm"
+        reduction = f"{c['reduction'] * 100:.0f} %" if c.get("ranked_first") else f"best {c['reduction'] * 100:.0f} %"
+        rows.append([c["hidden"], c.get("ranked_first") or "(none named)", error, reduction, c.get("fitted", "")])
+    return table(["hidden in the plant FMU", "ranked first", "held-out error at 1.0 s", "reduction", "fitted"], rows)
+
+
+def blind_table() -> str:
+    """docs/diagnose/validation.md: the blind bench's two full draws (seed 3, then seed 2)."""
+    outs = [load(name)["output"] for name in ("blind_s3", "blind_s2")]
+
+    def frac(part: float, n: int) -> str:
+        return f"{of(part, n)} ({part:.3f})"
+
+    rows = [
+        [f"library effects ranked first, all {outs[0]['library']['cases']} cases",
+         *[frac(o["library"]["top1"], o["library"]["cases"]) for o in outs], ">= 0.90"],
+        [f"the same over the {outs[0]['library']['detectable']} cases a perfect diagnosis can see (true form >= 10 %)",
+         *[frac(o["library"]["top1_detectable"], o["library"]["detectable"]) for o in outs], ""],
+        ["detectable cases first or tied with the first (paired t < 3, the verdict says so)",
+         *[of(o["library"]["top1_or_tied_detectable"], o["library"]["detectable"]) for o in outs], ""],
+        ["median achieved / true-form reduction (detectable cases)",
+         *[f"{o['library']['median_reduction_ratio']:.3f}" for o in outs], ">= 0.7"],
+        [f"false alarms on the {outs[0]['no_effect']['cases']} cases with nothing hidden (a named effect; a discovered "
+         "form with >= 10 % and t >= 3)",
+         *[f"{o['no_effect']['false_alarms']} and {o['no_effect']['discovered_alarms']}" for o in outs], "0"],
+        ["outside effects whose discovered form reaches half the true form's reduction",
+         *[frac(o["outside"]["discovered_ok"], o["outside"]["discovered_ok_of"]) for o in outs], ">= 0.75"],
+        ["time per case, median (max)",
+         *[f"{o['seconds_per_case']:g} s ({o['seconds_per_case_max']:.0f} s)" for o in outs], ""],
+    ]
+    return table(["figure", "seed 3 (new)", "seed 2", "target"], rows)
+
+
+#: Every table a page may mark, by name: what renders it (from the data files it loads).
+TABLES: dict[str, Callable[[], str]] = {
+    "benchmarks": benchmarks_table,
+    "diagnose-archive": archive_table,
+    "diagnose-drift-bench": drift_table,
+    "diagnose-several-effects-bench": several_effects_table,
+    "diagnose-hidden-effects": hidden_effects_table,
+    "diagnose-blind-bench": blind_table,
+}
+
+
+def pages() -> list[Path]:
+    """The Markdown pages that may mark tables: every page under ``docs/``."""
+    return sorted(p for item in PAGES for p in (ROOT / item).rglob("*.md"))
+
+
+def marked() -> dict[str, list[tuple[Path, str]]]:
+    """Every marked table's name and, per page showing it, what its marker holds."""
+    found: dict[str, list[tuple[Path, str]]] = {}
+    for page in pages():
+        for match in MARK.finditer(page.read_text()):
+            found.setdefault(match["name"], []).append((page, match["body"]))
+    return found
+
+
+def stale() -> list[str]:
+    """One line per problem: a marked table that is unknown, never shown, or differs from its data."""
+    found, problems = marked(), []
+    for name in sorted(set(found) - set(TABLES)):
+        problems.append(f"{found[name][0][0].relative_to(ROOT)}: unknown table {name} (known: {', '.join(TABLES)})")
+    for name in sorted(set(TABLES) - set(found)):
+        problems.append(f"table {name} is marked on no page")
+    for name, shown in found.items():
+        if name in TABLES:
+            fresh = TABLES[name]()
+            problems += [f"{page.relative_to(ROOT)}: table {name} differs from its data; remake it: "
+                         f".venv/bin/python tools/bench_tables.py" for page, body in shown if body != fresh]
+    return problems
+
+
+def write() -> list[Path]:
+    """Render every marked table into its pages; returns the pages changed."""
+    changed = []
+    for page in pages():
+        text = page.read_text()
+        new = MARK.sub(lambda m: f"<!-- table: {m['name']} -->\n{TABLES[m['name']]()}<!-- /table -->"
+                       if m["name"] in TABLES else m[0], text)
+        if new != text:
+            page.write_text(new)
+            changed.append(page)
+    return changed
+
+
+def record(name: str, command: list[str], load_note: str | None) -> Path:
+    """Run ``command`` (a benchmark, from the checkout's root, with this Python) and keep what it printed on
+    stdout as ``data/NAME.json``: one JSON value, or one a line (a list), under a header."""
+    argv = [sys.executable, *command] if command[0].endswith(".py") else command
+    before = os.getloadavg()
+    done = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"`{' '.join(command)}` failed (exit {done.returncode}):\n{done.stderr[-2000:]}")
+    text = done.stdout.strip()
+    try:
+        output = json.loads(text)
+    except json.JSONDecodeError:
+        try:
+            output = [json.loads(line) for line in text.splitlines() if line.strip()]
+        except json.JSONDecodeError as err:
+            raise SystemExit(f"`{' '.join(command)}` printed no JSON ({err}):\n{text[:500]}") from None
+    after = os.getloadavg()
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                            text=True).stdout.strip() or None
+    data = {"command": " ".join(command), "date": datetime.date.today().isoformat(), "commit": commit,
+            "machine_load": load_note or (f"load average {before[0]:.1f} before, {after[0]:.1f} after "
+                                          f"({os.cpu_count()} CPUs)"),
+            "source": PRINTED, "output": output}
+    DATA.mkdir(parents=True, exist_ok=True)
+    path = DATA / f"{name}.json"
+    path.write_text(json.dumps(data, indent=1) + "\n")
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line: rewrite the tables, check them, or record a benchmark's JSON."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["record"]:
+        p = argparse.ArgumentParser(prog="bench_tables.py record", description="keep a benchmark's JSON")
+        p.add_argument("name", help="the data file's name (docs/benchmarks/data/NAME.json)")
+        p.add_argument("--load", default=None, help="the machine's load, as text (default: the load average)")
+        p.add_argument("command", nargs=argparse.REMAINDER, help="-- the benchmark and its arguments")
+        args = p.parse_args(argv[1:])
+        command = args.command[1:] if args.command[:1] == ["--"] else args.command
+        if not command:
+            p.error("no command given after --")
+        print(f"kept {record(args.name, command, args.load).relative_to(ROOT)}")
+        return 0
+    p = argparse.ArgumentParser(description="Render the docs' measured tables from docs/benchmarks/data.")
+    p.add_argument("--check", action="store_true", help="only say which tables differ from their data (exit 1)")
+    args = p.parse_args(argv)
+    if args.check:
+        problems = stale()
+        print("\n".join(problems) or "every table is current")
+        return 1 if problems else 0
+    for page in write():
+        print(f"updated {page.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
