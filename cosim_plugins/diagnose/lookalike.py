@@ -11,9 +11,12 @@ t >= :data:`~cosim_plugins.diagnose.verdict.MIN_T`):
 * a rival significantly better than the best averaged over every horizon
   (and not significantly worse at the reference) is the better explanation:
   it takes the best's place;
-* otherwise, or when the two predict these logs less than
-  :data:`SAME_PREDICTION` of the noise floor apart (no excitation in the logs
-  separates them beyond the camera's noise), they are look-alikes.
+* otherwise, or when the two predict every log less than
+  :data:`SAME_PREDICTION` of the noise floor apart on average (no excitation
+  in the logs separates them beyond the camera's noise), they are
+  look-alikes. The distance is taken log by log: a designed experiment is
+  the one log where the members differ, and pooled with the logs where they
+  do not, its separation would be diluted by the archive's size.
 
 Typical groups: an actuation lag, a camera latency and a heading lag on logs
 whose spin rate changes slowly; a quadratic drag and a slower velocity
@@ -28,6 +31,7 @@ import numpy as np
 from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T
 
 SAME_PREDICTION = 0.5  # predictions this share of the noise floor apart (or closer) cannot be told apart
+MIN_LOG_WINDOWS = 20  # a log's distance between two predictions counts with at least this many held-out windows
 
 
 def group_of(fitter, best: dict, entries: list, fits: dict, floor: float | None, key: str):
@@ -51,7 +55,7 @@ def group_of(fitter, best: dict, entries: list, fits: dict, floor: float | None,
             continue
         ev = evidence_of(fitter, fits[lead], fits[name], key)
         if ((ev["t_stat"] < MIN_T and abs(ev["t_horizons"]) < MIN_T)
-                or (floor is not None and ev["differ_mm"] < SAME_PREDICTION * floor)):
+                or (floor is not None and ev["differ_log_mm"] < SAME_PREDICTION * floor)):
             members.append(name)
             evidence[name] = ev
     return members, evidence
@@ -59,19 +63,25 @@ def group_of(fitter, best: dict, entries: list, fits: dict, floor: float | None,
 
 def evidence_of(fitter, lead, rival, key: str) -> dict:
     """How far the data tell ``lead`` from ``rival`` (two Fits): paired t at ``key`` and over every horizon
-    (positive: the lead is better) and how far their predictions are apart [mm]."""
+    (positive: the lead is better), how far their predictions are apart [mm] over all held-out windows
+    (``differ_mm``) and on the log where they are furthest apart (``differ_log_mm``)."""
+    logs = fitter.tte.log[fitter.test_starts]
+    per_log = [predictions_apart(lead.ev, rival.ev, logs == k) for k in np.unique(logs)
+               if np.sum(logs == k) >= MIN_LOG_WINDOWS]
+    pooled = predictions_apart(lead.ev, rival.ev)
     return {"t_stat": fitter.paired_t(rival.ev[key], lead.ev[key]), "t_horizons": fitter.paired_t_horizons(rival, lead),
-            "differ_mm": predictions_apart(lead.ev, rival.ev)}
+            "differ_mm": pooled, "differ_log_mm": max(per_log, default=pooled)}
 
 
-def predictions_apart(a: dict, b: dict) -> float:
-    """Mean distance [mm] between two models' predictions, over the horizons and the windows valid for both.
+def predictions_apart(a: dict, b: dict, among: np.ndarray | None = None) -> float:
+    """Mean distance [mm] between two models' predictions, over the horizons and the windows valid for both
+    (and in ``among``, (w,) bool, when given).
 
     ``a``, ``b``: {horizon: {"valid": (w,) bool, "err": (w, 3) predicted - measured}}; the measurement cancels.
     """
     out = []
     for h in a:
-        ok = a[h]["valid"] & b[h]["valid"]
+        ok = a[h]["valid"] & b[h]["valid"] & (True if among is None else among)
         if ok.any():
             out.append(float(np.mean(np.linalg.norm(a[h]["err"][ok] - b[h]["err"][ok], axis=1))))
     return float(np.mean(out)) if out else 0.0

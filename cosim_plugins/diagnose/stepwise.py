@@ -65,7 +65,7 @@ class Step:
     entry: dict
     fit: Fit
     before: Fit
-    group_evidence: dict = field(default_factory=dict)  # {member: {"t_stat", "differ_mm"}} for a group
+    group_evidence: dict = field(default_factory=dict)  # {member: {"t_stat", "differ_mm", ...}} for a group
     member_fits: dict = field(default_factory=dict)  # {member: Fit} of every member, given the model before
 
     @property

@@ -186,7 +186,8 @@ def _steps_text(result: dict, key: str) -> str:
                          f"refitted with it, {drop}. Fitted: {params_text(st['params'])}.")
             continue
         rivals = ", ".join(f"{m} (t = {ev['t_stat']:.1f} at {key} s, {ev['t_horizons']:.1f} over all horizons; "
-                           f"predictions {ev['differ_mm']:.2f} mm apart; refitted together it adds "
+                           f"predictions {ev.get('differ_log_mm', ev['differ_mm']):.2f} mm apart on the log where "
+                           f"they differ most; refitted together it adds "
                            f"{ev['adds']:+.0%})"
                            for m, ev in st["group_evidence"].items())
         parts.append(f"{' or '.join(st['effects'])} explain the error about equally well: refitted with "

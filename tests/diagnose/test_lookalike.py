@@ -3,8 +3,8 @@
 The logs of ``scenarios/diagnose/plain.yaml`` (spin rate stepped every few seconds) with the camera's
 frames 80 ms late: refitted with either, the held-out error falls by about a fifth, and the two do not
 differ significantly. The diagnosis declares the group instead of a name, designs the experiment
-and writes it; the experiment, run on the same plant and camera, gives a log whose diagnosis still
-never names the wrong effect.
+and writes it; the experiment, run on the same plant and camera, gives a log on which the two predict
+apart, and with it added the diagnosis names the camera latency.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def test_lag_and_latency_are_declared_a_group_not_a_name(late_camera):
     assert step["group"] and step["reduction"] >= 0.10 and step["t_stat"] >= 3.0
     rival = step["group_evidence"][step["effects"][1]]
     told_apart = rival["t_stat"] >= 3.0 or abs(rival["t_horizons"]) >= 3.0
-    assert not told_apart or rival["differ_mm"] < 0.5 * r["noise_floor_mm"]  # not told apart, or nearly alike
+    assert not told_apart or rival["differ_log_mm"] < 0.5 * r["noise_floor_mm"]  # not told apart, or nearly alike
     assert rival["adds"] < 0.10  # and it adds nothing to the other
     assert "None of them is named" in v["explanation"] and "experiment.yaml" in v["explanation"]
 
@@ -73,9 +73,13 @@ def test_the_experiment_is_written_within_the_logs_band(late_camera):
     assert freq.min() >= lo - 1e-3 and freq.max() <= hi + 1e-3
 
 
-def test_with_the_experiments_log_the_lag_is_never_named(late_camera):
-    """The experiment's log was recorded (it ran as a scenario) and diagnosed with the others: the wrong effect
-    is still not named with confidence."""
+def test_with_the_experiments_log_the_tie_is_resolved(late_camera):
+    """The experiment's log was recorded (it ran as a scenario) and diagnosed with the others: the camera latency
+    is named, alone, and its delay is the camera's 80 ms."""
     _, _, again = late_camera
     assert len(again["logs"]) == 5
-    assert "actuation_lag" not in again["verdict"]["effects"], again["verdict"]["explanation"]
+    assert again["verdict"]["effects"] == ["sensor_latency"], again["verdict"]["explanation"]
+    assert again["verdict"]["lookalikes"] == []
+    step = again["stepwise"]["steps"][0]
+    delay_s = step["params"]["sensor_latency.delay"]["value"] * again["dt_s"]  # in camera periods
+    assert delay_s == pytest.approx(0.08, abs=0.01)
