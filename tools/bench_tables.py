@@ -93,6 +93,14 @@ def _loop_against(d: dict) -> str:
     return f"`--against` {d['against']}, {n} runs each, alternated: " + ", ".join(parts)
 
 
+def _loop(d: dict) -> str:
+    o = d["output"]
+    return (f"one process {o['one_process']['realtime_factor']:g}x, "
+            f"`--processes` {o['processes']['realtime_factor']:g}x "
+            f"(`--node-cpus none` {o['processes_os_placement']['realtime_factor']:g}x), medians of "
+            f"{len(o['processes']['runs'])} runs of {o['sim_s']:g} s")
+
+
 def _components(d: dict) -> str:
     step = d["output"]["step_us"]
     return ", ".join(f"{name} {v['median']:g}" for name, v in step.items()) + \
@@ -202,7 +210,8 @@ ROWS = (
     Row("plant.py", "290 s of simulated time through fmpy at 20 ms steps", "`wall_s` <= 1.0", ("plant",), _plant),
     Row("loop.py", "real-time factor of the racetrack PI loop, one process / one process per component; "
         "`--against DIR`: this checkout against another, run by run alternately", ">= 100 / >= 25",
-        ("loop_against_785565c", "loop_against_d12c65a", "loop_against_d12c65a_soak"), _loop_against),
+        ("loop", "loop_against_785565c", "loop_against_d12c65a", "loop_against_d12c65a_soak"),
+        lambda d: (_loop_against if "layouts" in d["output"] else _loop)(d)),
     Row("components.py", "each racetrack component's `step()` alone, replayed on a run's recorded inputs "
         "(checked against the recorded outputs)", "-", ("components",), _components),
     Row("fit.py", "training time of each model on 174,000 samples (physical / SINDy nonlinear / SINDy linear / MLP)",
@@ -213,7 +222,7 @@ ROWS = (
     Row("camera.py", "detection and triangulation of one rendered frame pair at 800 x 600 (the frames made "
         "beforehand; each pair's minimum over 5 passes)", "`pair_ms` median <= 2 ms", ("camera",), _camera),
     Row("diagnose.py", "`cosim diagnose` on five 3,000-row logs", "<= 20 s (round 3)",
-        ("diagnose_jobs2", "diagnose_jobs1"), _diagnose),
+        ("diagnose_jobs2_010912a", "diagnose_jobs2", "diagnose_jobs1"), _diagnose),
     Row("archive.py", "`cosim diagnose` on 5, 20 and 120 logs of 60 s from the blind bench's simulator "
         "(a background flow hidden): wall time, peak memory, the named effects",
         "2 hours <= 3 min and <= 3 GB, the verdict of 20 logs", ("archive",), _archive),
