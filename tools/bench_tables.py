@@ -266,7 +266,7 @@ def archive_table() -> str:
 
 
 DRIFT_SEEDS = (("blind_drift_s21", "seed 21 (first draw)"), ("blind_drift_s22", "seed 22 (stopped)"),
-               ("blind_drift_s23", "seed 23 (fresh, final code)"))
+               ("blind_drift_s23", "seed 23 (fresh, size gates)"), ("blind_drift_s24", "seed 24 (fresh, trend fits)"))
 
 
 def drift_table() -> str:
