@@ -19,6 +19,10 @@ Cases (``form`` says whether the injected law can equal the FMU's):
   wall_drag_exp       examples/my_effect.py's wall_drag_exp (the FMU's exponential form, a user's effect
                       file) near the floor: linear and held coupling.
 
+``open_loop_mm`` replays the native run's coil commands open loop through the forced plant with the
+effect, linear and held (the closed loop amplifies any difference: a force of 1e-11 N alone moves a
+60 s racetrack by about 0.06 mm mean, as camera pixels flip), so it measures the injection itself.
+
     PYTHONPATH=. .venv/bin/python benchmarks/twin_inject.py [--duration 60] [--only NAME,...]
 """
 
@@ -114,6 +118,39 @@ def run(scenario: dict, folder: Path) -> tuple[dict, float]:
     return {"plant": plant, "log": log}, wall
 
 
+def replay(native_run: Path, case: dict, coupling: str) -> np.ndarray:
+    """The native run's coil commands replayed open loop through plant.fmu_forced with the case's effect
+    (no feedback, so no camera pixel flips amplify a difference): the plant's positions (n, 3) [m]."""
+    from cosim_plugins.identify.effect import known_effects, load_effect_files
+    from cosim_plugins.plant.fmu_component import FmuForcedPlant
+    from cosim_plugins.twin.component import EffectInjector
+
+    if case.get("plugins") and not set(case["effects"]) <= set(known_effects()):
+        load_effect_files(case["plugins"])
+    z = np.load(native_run / "trace.npz")
+    _, inj = scenario_pair(case, 1.0)
+    plant, effect = FmuForcedPlant(), EffectInjector()
+    plant.setup({**inj["components"]["plant"]["params"], "dt": 0.02}, np.random.default_rng(0))
+    effect.setup({**inj["components"]["effect"]["params"], "coupling": coupling, "dt": 0.02},
+                 np.random.default_rng(0))
+    out = [plant.initial_outputs()["position"]]
+    state = plant.initial_outputs()
+    try:
+        for k in range(1, len(z["t_s"])):
+            force = effect.step(z["t_s"][k - 1], {"position": state["position"], "velocity": state["velocity"],
+                                                  "omega": z["controller.omega"][k - 1]})
+            state = plant.step(z["t_s"][k], {
+                "coil_voltage_amp": z["coil_driver.coil_voltage_amp"][k - 1],
+                "coil_voltage_phase": z["coil_driver.coil_voltage_phase"][k - 1],
+                "drive_freq": z["coil_driver.drive_freq"][k - 1],
+                "external_force": force["force"], "external_force_dp": force["force_dp"],
+                "external_force_dv": force["force_dv"]})
+            out.append(state["position"])
+    finally:
+        plant.close()
+    return np.array(out)
+
+
 def distance_mm(a: np.ndarray, b: np.ndarray) -> dict:
     """Mean and max distance [mm] between two (n, 3) [m] position series (rows with NaN skipped)."""
     d = np.linalg.norm(a - b, axis=1) * 1e3
@@ -139,8 +176,11 @@ def main(argv=None) -> int:
             a, wall_a = run(native, folder / "native")
             b, wall_b = run(inj, folder / "injected")
             plant, log = distance_mm(a["plant"], b["plant"]), distance_mm(a["log"], b["log"])
+            open_loop = {c: distance_mm(a["plant"], replay(folder / "native" / "run", case, c))
+                         for c in ("linear", "held")}
             out["cases"].append({"name": case["name"], "coupling": case["coupling"], "form": case["form"],
                                  "plant_mm": plant, "log_mm": log, "within_target": log["mean"] <= TARGET_MM,
+                                 "open_loop_mm": open_loop,
                                  "wall_s": {"native": round(wall_a, 2), "injected": round(wall_b, 2)}})
             print(json.dumps(out["cases"][-1]), file=sys.stderr)
     out["wall_s"] = round(time.perf_counter() - t_all, 1)
