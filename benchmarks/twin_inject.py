@@ -43,6 +43,7 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))  # this checkout's cosim_plugins (the twin), also without PYTHONPATH
 SCENARIOS = ROOT / "cosim_plugins" / "scenarios"
 EXAMPLE_EFFECT = ROOT / "examples" / "my_effect.py"
 TARGET_MM = 0.05
@@ -52,7 +53,6 @@ NEAR_FLOOR = {"z_mm": -70.0, "p0_z": -0.070}
 
 def cases() -> list[dict]:
     """Every case: name, native plant params, injected effect spec, coupling, path z."""
-    sys.path.insert(0, str(ROOT))
     from cosim_plugins.twin.match import wall_drag_exp_like_fmu, wall_drag_like_fmu
 
     lib = wall_drag_like_fmu()
@@ -115,7 +115,8 @@ def run(scenario: dict, folder: Path) -> tuple[dict, float]:
     with open(folder / "run" / "log.csv") as fh:
         rows = list(csv.DictReader(fh))
     log = np.array([[float(r[f"p_{a}"] or "nan") for a in "xyz"] for r in rows])
-    return {"plant": plant, "log": log}, wall
+    summary = json.loads((folder / "run" / "summary.json").read_text())
+    return {"plant": plant, "log": log, "tracking_mm": round(summary["tracking_error_mm"]["mean"], 4)}, wall
 
 
 def replay(native_run: Path, case: dict, coupling: str) -> np.ndarray:
@@ -165,7 +166,11 @@ def main(argv=None) -> int:
     parser.add_argument("--only", default="", help="comma-separated case names (default: all)")
     args = parser.parse_args(argv)
     only = {n for n in args.only.split(",") if n}
-    out = {"duration_s": args.duration, "target_mean_mm": TARGET_MM, "cases": []}
+    from cosim_plugins.twin.match import wall_drag_like_fmu
+
+    out = {"duration_s": args.duration, "target_mean_mm": TARGET_MM, "cases": [],
+           "wall_drag_fit": {k: (round(v, 4) if isinstance(v, float) else [round(x, 5) for x in v])
+                             for k, v in wall_drag_like_fmu().items()}}
     t_all = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="twin_inject_") as tmp:
         for case in cases():
@@ -181,6 +186,7 @@ def main(argv=None) -> int:
             out["cases"].append({"name": case["name"], "coupling": case["coupling"], "form": case["form"],
                                  "plant_mm": plant, "log_mm": log, "within_target": log["mean"] <= TARGET_MM,
                                  "open_loop_mm": open_loop,
+                                 "tracking_error_mean_mm": {"native": a["tracking_mm"], "injected": b["tracking_mm"]},
                                  "wall_s": {"native": round(wall_a, 2), "injected": round(wall_b, 2)}})
             print(json.dumps(out["cases"][-1]), file=sys.stderr)
     out["wall_s"] = round(time.perf_counter() - t_all, 1)
