@@ -23,7 +23,7 @@ Cases (``form`` says whether the injected law can equal the FMU's):
 effect, linear and held (the closed loop amplifies any difference: a force of 1e-11 N alone moves a
 60 s racetrack by about 0.06 mm mean, as camera pixels flip), so it measures the injection itself.
 
-    PYTHONPATH=. .venv/bin/python benchmarks/twin_inject.py [--duration 60] [--only NAME,...]
+    PYTHONPATH=. .venv/bin/python benchmarks/twin_inject.py [--duration 60] [--only NAME,...] [--seeds 1,2]
 """
 
 from __future__ import annotations
@@ -164,6 +164,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--duration", type=float, default=60.0, help="seconds of racetrack per run")
     parser.add_argument("--only", default="", help="comma-separated case names (default: all)")
+    parser.add_argument("--seeds", default="1", help="comma-separated scenario seeds (camera noise); one row per "
+                                                     "case and seed (default: 1, the shipped scenario's)")
     args = parser.parse_args(argv)
     only = {n for n in args.only.split(",") if n}
     from cosim_plugins.twin.match import wall_drag_like_fmu
@@ -173,17 +175,18 @@ def main(argv=None) -> int:
                              for k, v in wall_drag_like_fmu().items()}}
     t_all = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="twin_inject_") as tmp:
-        for case in cases():
+        for case, seed in ((c, int(x)) for c in cases() for x in args.seeds.split(",")):
             if only and case["name"] not in only:
                 continue
             native, inj = scenario_pair(case, args.duration)
-            folder = Path(tmp) / case["name"].replace("/", "_")
+            native["seed"] = inj["seed"] = seed
+            folder = Path(tmp) / f"{case['name'].replace('/', '_')}_seed{seed}"
             a, wall_a = run(native, folder / "native")
             b, wall_b = run(inj, folder / "injected")
             plant, log = distance_mm(a["plant"], b["plant"]), distance_mm(a["log"], b["log"])
             open_loop = {c: distance_mm(a["plant"], replay(folder / "native" / "run", case, c))
                          for c in ("linear", "held")}
-            out["cases"].append({"name": case["name"], "coupling": case["coupling"], "form": case["form"],
+            out["cases"].append({"name": case["name"], "seed": seed, "coupling": case["coupling"], "form": case["form"],
                                  "plant_mm": plant, "log_mm": log, "within_target": log["mean"] <= TARGET_MM,
                                  "open_loop_mm": open_loop,
                                  "tracking_error_mean_mm": {"native": a["tracking_mm"], "injected": b["tracking_mm"]},
