@@ -1,17 +1,11 @@
-"""Plant plugin: the six-coil manipulator + swimmer + tank FMU as component ``plant.fmu``,
-the same FMU with its external force input as ``plant.fmu_forced``, and the component that
-applies effects through that input, ``twin.effect`` (:mod:`cosim_plugins.twin`)."""
+"""Plant plugin: the six-coil manipulator + swimmer + tank FMU as component ``plant.fmu``."""
 
 from cosim import hookimpl
-from cosim_plugins.plant.fmu_component import FmuForcedPlant, FmuPlant
+from cosim_plugins.plant.fmu_component import FmuPlant
 
-__all__ = ["FmuForcedPlant", "FmuPlant"]
+__all__ = ["FmuPlant"]
 
 
 @hookimpl
 def cosim_register_components(register):
-    from cosim_plugins.twin.component import EffectInjector
-
     register("plant.fmu", FmuPlant)
-    register("plant.fmu_forced", FmuForcedPlant)
-    register("twin.effect", EffectInjector)
