@@ -69,3 +69,30 @@ class FmuPlant(FmuComponent):
         from cosim_plugins.plant.build import ensure_fmu
 
         return ensure_fmu() if params.get("fmu") is None else super().fmu_file(params)
+
+
+_AXES = "xyz"
+
+
+class FmuForcedPlant(FmuPlant):
+    """``plant.fmu_forced``: the same FMU with its external force input wired as ports.
+
+    The force (N, tank frame) is added to the swimmer's forces inside the FMU's integration:
+    ``external_force`` held over the step, plus ``external_force_dp`` (p - p_0) +
+    ``external_force_dv`` (v - v_0), p_0 and v_0 the state at the step's start, evaluated at every
+    internal step. ``twin.effect`` (``cosim_plugins/twin``) computes these from effects; wire them with
+    ``delay: 1`` (the force computed at t acts over [t, t + dt)). Zero inputs give ``plant.fmu``'s run.
+    """
+
+    inputs = (
+        *FmuPlant.inputs,
+        Port("external_force", (3,), "N", "force added to the swimmer, tank frame"),
+        Port("external_force_dp", (9,), "N/m", "its derivative dF_a/dp_b, row-major (a, b)"),
+        Port("external_force_dv", (9,), "N s/m", "its derivative dF_a/dv_b, row-major (a, b)"),
+    )
+    input_variables = {
+        **FmuPlant.input_variables,
+        "external_force": tuple(f"F_ext_{a}" for a in _AXES),
+        "external_force_dp": tuple(f"F_ext_dp_{a}{b}" for a in _AXES for b in _AXES),
+        "external_force_dv": tuple(f"F_ext_dv_{a}{b}" for a in _AXES for b in _AXES),
+    }

@@ -108,6 +108,19 @@ static double wall_factor(const Plant *pl, const double p[3])
     return 1.0 + P(pl, wall_drag_gain) * s;
 }
 
+/* The external force input (an effect applied from outside) added to F [N]: F_ext, held over
+ * the step, plus its linear-in-state part F_ext_dp (p - p_0) + F_ext_dv (v - v_0) about the
+ * state at the step's start, so a state-dependent effect follows the internal steps. */
+static void external_force(const Plant *pl, const double p[3], const double v[3], double F[3])
+{
+    const double *dp = pl->r + R_F_ext_dp_xx, *dv = pl->r + R_F_ext_dv_xx;
+    double e[3] = {p[0] - pl->ext_p0[0], p[1] - pl->ext_p0[1], p[2] - pl->ext_p0[2]};
+    double w[3] = {v[0] - pl->ext_v0[0], v[1] - pl->ext_v0[1], v[2] - pl->ext_v0[2]};
+    for (int a = 0; a < 3; ++a)
+        F[a] += pl->r[R_F_ext_x + a] + dp[3 * a] * e[0] + dp[3 * a + 1] * e[1] + dp[3 * a + 2] * e[2]
+              + dv[3 * a] * w[0] + dv[3 * a + 1] * w[1] + dv[3 * a + 2] * w[2];
+}
+
 static void derivatives(const Plant *pl, const Drive *d, double t, const double *y, double *dy)
 {
     double I[N_COILS], dI[N_COILS];
@@ -165,6 +178,7 @@ static void derivatives(const Plant *pl, const Drive *d, double t, const double 
         double s = P(pl, gradient_force_scale);   /* F_b = sum_a m_a dB_a/dx_b */
         for (int b = 0; b < 3; ++b) F[b] += s * (m[0] * Jt[0][b] + m[1] * Jt[1][b] + m[2] * Jt[2][b]);
     }
+    external_force(pl, p, v, F);
     for (int a = 0; a < 3; ++a) dy[Y_P + a] = v[a];
     if (!ON(pl, added_mass_on)) {
         double inv_m = 1.0 / P(pl, mass);
@@ -319,6 +333,10 @@ int plant_step(Plant *pl, double h, char *msg, size_t n)
     int steps = n_sub < 1.0 ? 1 : (int)n_sub;
     double dt = h / steps;
     pl->y[Y_SPIN] = 0.0;
+    for (int a = 0; a < 3; ++a) {
+        pl->ext_p0[a] = pl->y[Y_P + a];
+        pl->ext_v0[a] = pl->y[Y_V + a];
+    }
     for (int k = 0; k < steps; ++k) {
         rk4_substep(pl, &d, dt);
         pl->t = t0 + (k + 1) * dt;

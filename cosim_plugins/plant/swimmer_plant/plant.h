@@ -35,6 +35,7 @@ typedef struct {
     double p_ref[3];         /* where G_ref, J_ref were evaluated [m] */
     double G_ref[N_COILS][3];
     double J_ref[N_COILS][3][3];
+    double ext_p0[3], ext_v0[3];  /* state at the start of the step [m], [m/s]: where F_ext was evaluated */
 } Plant;
 
 /* Name and kind (IN, OUT, PAR, TUN) of every variable, by index */

@@ -64,7 +64,17 @@
     X(wall_drag_length, PAR, 2.5e-3) \
     X(gradient_force_scale, PAR, 1.0) \
     X(quad_drag_cd, PAR, 1.0) \
-    X(added_mass_axial, PAR, 0.165) X(added_mass_perp, PAR, 0.752)
+    X(added_mass_axial, PAR, 0.165) X(added_mass_perp, PAR, 0.752) \
+    /* external force [N], tank frame, inputs appended so the value references above stay: */ \
+    /* F = F_ext + F_ext_dp (p - p_0) + F_ext_dv (v - v_0), p_0 and v_0 the state at the */ \
+    /* start of the step; F_ext_dp_ab = dF_a/dp_b [N/m], F_ext_dv_ab = dF_a/dv_b [N s/m] */ \
+    X(F_ext_x, IN, 0.0) X(F_ext_y, IN, 0.0) X(F_ext_z, IN, 0.0) \
+    X(F_ext_dp_xx, IN, 0.0) X(F_ext_dp_xy, IN, 0.0) X(F_ext_dp_xz, IN, 0.0) \
+    X(F_ext_dp_yx, IN, 0.0) X(F_ext_dp_yy, IN, 0.0) X(F_ext_dp_yz, IN, 0.0) \
+    X(F_ext_dp_zx, IN, 0.0) X(F_ext_dp_zy, IN, 0.0) X(F_ext_dp_zz, IN, 0.0) \
+    X(F_ext_dv_xx, IN, 0.0) X(F_ext_dv_xy, IN, 0.0) X(F_ext_dv_xz, IN, 0.0) \
+    X(F_ext_dv_yx, IN, 0.0) X(F_ext_dv_yy, IN, 0.0) X(F_ext_dv_yz, IN, 0.0) \
+    X(F_ext_dv_zx, IN, 0.0) X(F_ext_dv_zy, IN, 0.0) X(F_ext_dv_zz, IN, 0.0)
 
 #define BOOL_VARS(X) \
     X(background_flow_on, TUN, 0) \

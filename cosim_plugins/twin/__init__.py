@@ -1,0 +1,21 @@
+"""The twin plugin: the plant FMU with effects added from outside.
+
+Registers two components: ``plant.fmu_forced`` (the plant FMU with its external
+force input as ports, :class:`cosim_plugins.plant.fmu_component.FmuForcedPlant`) and
+``twin.effect`` (:mod:`.component`), which evaluates force effects (library effects
+by name, a user's effect file loaded as a plugin, or every force effect of a saved
+physical model) at the plant's own state and the command and sends the force to
+the plant. The effects work in the identification units (mm, mm/s, Hz, uN); the FMU
+in SI: :mod:`.units` converts at that edge. See ``docs/twin.md``.
+"""
+
+from cosim import hookimpl
+
+
+@hookimpl
+def cosim_register_components(register):
+    from cosim_plugins.plant.fmu_component import FmuForcedPlant
+    from cosim_plugins.twin.component import EffectInjector
+
+    register("plant.fmu_forced", FmuForcedPlant)
+    register("twin.effect", EffectInjector)
