@@ -61,10 +61,13 @@ COIL_TESTS = ("tests/coil_driver/test_coil_interlocks.py", "tests/coil_driver/te
 EKF_TESTS = ("tests/estimators/test_kf_filter.py", "tests/estimators/test_ekf_jacobian.py",
              "tests/estimators/test_ekf_parts.py", "tests/estimators/test_kf_noise.py",
              "tests/estimators/test_kf_noise_parts.py", "tests/estimators/test_kf_noise_fit.py")
-# the loop in one process, delays 0 to 3 on each edge once (each run starts a zenoh session: a second), and
-# what a component is given at set-up
-DELAY_TESTS = ("tests/core/test_delays.py", "tests/core/test_component_setup.py",
-               "-k", "reference or one_process and (1-0 or 2-1 or 3-2 or 1-3) or test_component_setup")
+# the stepper and the port store in-process (the node layout's store of received rows, a step's inputs over
+# delayed edges, publishing, timeouts, closing: milliseconds a test), what a component is given at set-up, and
+# the loop in one process, delays 0 to 3 on each edge once (each run starts a zenoh session: a second)
+DELAY_TESTS = ("tests/core/test_stepper.py", "tests/core/test_portcache.py", "tests/core/test_component_setup.py",
+               "tests/core/test_delays.py",
+               "-k", "test_stepper or test_portcache or test_component_setup or reference"
+                     " or one_process and (1-0 or 2-1 or 3-2 or 1-3)")
 TARGETS = (  # cheap and most dangerous first: a run cut short still has their figures
     # the hypothesis property test takes ~17 s alone and neared 60 s on a loaded machine: a slow run is no hang
     Target("interlocks", "cosim_plugins/coil_driver/interlocks.py", COIL_TESTS, timeout_s=180.0),
@@ -204,6 +207,50 @@ EQUIVALENT: dict[str, str] = {
         "_dataset's default profile: its one caller always passes the scenario's",
     'cosim_plugins.estimators.kalman.x__dataset__mutmut_6':
         'glob() for a pattern without wildcards too: it returns the name when the file exists, [] when not',
+    # stepper.py
+    'cosim.runtime.stepper.x_setup_component__mutmut_8':
+        "getattr(component, 'uses_path', None): None is false, as False is",
+    'cosim.runtime.stepper.x_setup_component__mutmut_26':
+        "getattr(component, 'uses_run_dir', None): None is false, as False is",
+    'cosim.runtime.stepper.xǁStepperǁ__init____mutmut_1':
+        'self.name = None: nothing reads a stepper\'s name (the scheduler and nodes key steppers by it)',
+    'cosim.runtime.stepper.xǁStepperǁ__init____mutmut_5':
+        'self.period = None: nothing reads it (the scheduler and nodes take periods from the wiring)',
+    'cosim.runtime.stepper.xǁStepperǁstep__mutmut_27':
+        "always value.reshape(shape): a vector's shape is None, and ndarray.reshape(None) returns it as it is",
+    'cosim.runtime.stepper.xǁStepperǁ_publish__mutmut_13':
+        "a scalar's float fast path never taken: the general path makes it a 0-d array of shape (), the same value",
+    'cosim.runtime.stepper.xǁStepperǁ_publish__mutmut_19':
+        'every value through np.asarray(dtype=float): a float64 array comes back as it is',
+    'cosim.runtime.stepper.xǁStepperǁ_publish__mutmut_21':
+        'arrays of other dtypes left unconverted: assigning them into the float64 row converts them alike',
+    'cosim.runtime.stepper.xǁStepperǁ_publish__mutmut_24':
+        'np.asarray(value, dtype=None): assigning into the float64 row converts alike, the shape checked the same',
+    'cosim.runtime.stepper.xǁStepperǁ_publish__mutmut_26':
+        'np.asarray(value) without dtype: assigning into the float64 row converts alike, the shape checked the same',
+    'cosim.runtime.stepper.xǁStepperǁ_publish__mutmut_30':
+        'always value.reshape(-1): a 0-d or 1-d value flattened fills its slot with the same numbers',
+    'cosim.runtime.stepper.xǁStepperǁ_publish__mutmut_36':
+        'reshape(-2) for reshape(-1): numpy takes any negative size as the unknown one',
+    # portcache.py
+    'cosim.runtime.portcache.xǁPortStoreǁrow__mutmut_1':
+        "a plain store's row(timeout_s=1.0): a plain store never waits, the argument is unread",
+    'cosim.runtime.portcache.xǁPortStoreǁstore_payload__mutmut_3':
+        "np.frombuffer(dtype=None): its default is float64 in the host's order, little-endian on the hosts supported",
+    'cosim.runtime.portcache.xǁPortStoreǁstore_payload__mutmut_5':
+        "np.frombuffer without dtype: float64 in the host's order, little-endian on the hosts supported",
+    'cosim.runtime.portcache.xǁPortCacheǁ_drain__mutmut_11':
+        "np.frombuffer(dtype=None): its default is float64 in the host's order, little-endian on the hosts supported",
+    'cosim.runtime.portcache.xǁPortCacheǁ_drain__mutmut_13':
+        "np.frombuffer without dtype: float64 in the host's order, little-endian on the hosts supported",
+    'cosim.runtime.portcache.xǁPortCacheǁrow__mutmut_3':
+        "the first look-up skipped: the drain's look-up finds the row (a fast path's saving lost, not its result)",
+    'cosim.runtime.portcache.xǁPortCacheǁrow__mutmut_4':
+        "the first look-up of stamp None (never stored): the drain's look-up finds the row",
+    'cosim.runtime.portcache.xǁPortCacheǁrow__mutmut_7':
+        "the look-up after the drain skipped: poll's first fetch, before any wait, finds the row",
+    'cosim.runtime.portcache.xǁPortCacheǁrow__mutmut_8':
+        "the look-up after the drain of stamp None: poll's first fetch, before any wait, finds the row",
     # inverse.py
     'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁ_latch__mutmut_3':
         "rotation = '' for None at a trip: the fault stays latched, no later step computes a rotation",

@@ -11,7 +11,7 @@ import pytest
 from cosim import ComponentError
 from cosim.runtime.stepper import setup_component
 from cosim.runtime.wiring import build_wiring
-from cosim.scenario.schema import load_scenario
+from cosim.scenario.schema import PathSpec, load_scenario
 
 LOOP = Path(__file__).parent / "data" / "loop.yaml"
 
@@ -79,3 +79,27 @@ def test_a_refusal_at_set_up_names_the_component_and_its_plugin(loop):
     with pytest.raises(ComponentError) as err:
         set_up(loop, "gain")
     assert str(err.value) == "components.gain (test.gain): refused on purpose"
+
+
+def test_a_component_that_needs_a_path_gets_the_scenarios_path(loop):
+    scenario, _ = loop
+    scenario.path = PathSpec(plugin="circle", params={"radius_mm": 40.0, "center_mm": [0.0, 0.0, 5.0]})
+    path = set_up(loop, uses_path=True).params["path"]
+    assert type(path).__name__ == "Circle" and path.radius_mm == 40.0
+    assert path.center.tolist() == [0.0, 0.0, 0.005]  # [m]
+    assert "path" not in set_up(loop).params  # one that does not ask gets none
+
+
+class _Plain:
+    """A component written without the framework's base class: no uses_path, no uses_run_dir."""
+
+    def setup(self, params, rng):
+        self.params = dict(params)
+
+
+def test_a_component_without_the_base_class_gets_neither_path_nor_run_folder(loop, tmp_path):
+    scenario, wiring = loop
+    scenario.path = PathSpec(plugin="circle", params={})
+    wiring.classes["summer"] = _Plain
+    summer = setup_component(scenario, wiring, "summer", tmp_path)
+    assert summer.params == {"dt": 0.02, "y0": 0.25}
