@@ -2,8 +2,10 @@
 
 ``make test`` runs the suite on every core (pytest-xdist, ``-n auto --dist loadscope``). Each worker
 takes whole folders of ``tests/`` (so a folder's session fixtures, recorded plant logs or trained
-models, are made once) or a module of :data:`OWN_WORKER` (an expensive fixture of its own); the
-folders of :data:`FIRST` are handed out first, so the longest work starts at once.
+models, are made once) or a module of :data:`OWN_WORKER` (an expensive fixture of its own, none of the
+folder's shared ones). Work units are handed out longest first: those of :data:`FIRST` in its order
+(measured), then the others by their number of tests. xdist's own reordering (by number of tests
+alone) is off: it put ``tests/core``'s many quick tests before the diagnoses of minutes.
 """
 
 from __future__ import annotations
@@ -15,28 +17,44 @@ from hang_guard import pytest_runtest_protocol  # noqa: F401  (a hook: COSIM_TES
 
 from cosim.contract import plugins
 
-OWN_WORKER = ("tests/diagnose/test_blind.py",)
-FIRST = ("tests/diagnose/test_blind.py", "tests/diagnose")
+OWN_WORKER = ("tests/diagnose/test_blind.py", "tests/diagnose/test_lookalike.py", "tests/diagnose/test_drift.py")
+FIRST = ("tests/diagnose/test_blind.py", "tests/diagnose", "tests/diagnose/test_lookalike.py",
+         "tests/diagnose/test_drift.py")
+
+
+def work_unit(nodeid: str) -> str:
+    """The work unit of a test: its module if in :data:`OWN_WORKER`, else its folder."""
+    path = nodeid.split("::", 1)[0]
+    return path if path in OWN_WORKER else path.rsplit("/", 1)[0]
 
 
 def pytest_collection_modifyitems(config, items):
-    """The longest work first (every worker collects the same order)."""
-    def rank(item):
-        return next((i for i, p in enumerate(FIRST) if item.nodeid.startswith(p)), len(FIRST))
+    """The longest work first (every worker collects the same order): the units of :data:`FIRST` in its
+    order, then the others by their number of tests, most first; a unit's tests stay together, in the
+    order collected."""
+    count: dict[str, int] = {}
+    for item in items:
+        count[work_unit(item.nodeid)] = count.get(work_unit(item.nodeid), 0) + 1
 
-    items.sort(key=rank)  # stable: the collection order within each rank
+    def rank(item):
+        unit = work_unit(item.nodeid)
+        return (FIRST.index(unit), 0, "") if unit in FIRST else (len(FIRST), -count[unit], unit)
+
+    items.sort(key=rank)  # stable: the collection order within each unit
 
 
 def pytest_xdist_make_scheduler(config, log):
-    """With ``--dist loadscope``: a work unit is a folder of ``tests/`` or a module of :data:`OWN_WORKER`."""
+    """With ``--dist loadscope``: a work unit is a folder of ``tests/`` or a module of :data:`OWN_WORKER`,
+    handed out in the collection's order (see :func:`pytest_collection_modifyitems`)."""
     if config.getvalue("dist") != "loadscope":
         return None
     from xdist.scheduler import LoadScopeScheduling
 
+    config.option.loadscopereorder = False  # xdist's order (most tests first) would undo the one above
+
     class FolderScheduling(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            path = nodeid.split("::", 1)[0]
-            return path if path in OWN_WORKER else path.rsplit("/", 1)[0]
+            return work_unit(nodeid)
 
     return FolderScheduling(config, log)
 
