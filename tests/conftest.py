@@ -18,8 +18,11 @@ from hang_guard import pytest_runtest_protocol  # noqa: F401  (a hook: COSIM_TES
 from cosim.contract import plugins
 
 OWN_WORKER = ("tests/diagnose/test_blind.py", "tests/diagnose/test_lookalike.py", "tests/diagnose/test_drift.py")
-FIRST = ("tests/diagnose/test_blind.py", "tests/diagnose", "tests/diagnose/test_lookalike.py",
-         "tests/diagnose/test_drift.py")
+#: the longest units, longest first (``--durations`` on 25 Nov 2026, loaded 2-core machine): the folder's plant
+#: variants and the diagnoses on them (~2250 s of test time), the blind cases (~1600 s), the look-alike's runs
+#: (~700 s), ``tests/test_reproduce.py`` (one test, ~670 s), the docs' outputs (~310 s), the drift logs (~100 s)
+FIRST = ("tests/diagnose", "tests/diagnose/test_blind.py", "tests/diagnose/test_lookalike.py", "tests",
+         "tests/docs", "tests/diagnose/test_drift.py")
 
 
 def work_unit(nodeid: str) -> str:
