@@ -300,26 +300,40 @@ def drift_table() -> str:
     return table(["figure", *[label for _, label in DRIFT_SEEDS], "target"], rows)
 
 
+SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10 (look-alikes, distance per log)"))
+
+
 def several_effects_table() -> str:
-    """docs/diagnose/several-effects.md: the blind bench's multi and lookalike groups, seed 8."""
-    o = load("blind_groups_s8")["output"]
-    multi, look = o["multi"], o["lookalike"]
-    after = round((look["resolved"] - look["named_at_once"]) * look["cases"])
+    """docs/diagnose/several-effects.md: the blind bench's multi and lookalike groups, per seed."""
+    outs = [load(name)["output"] for name, _ in SEVERAL_SEEDS]
+
+    def multi(render: Callable[[dict], str]) -> list[str]:
+        return [render(o["multi"]) if o["multi"]["cases"] else "-" for o in outs]
+
+    def look(render: Callable[[dict], str]) -> list[str]:
+        return [render(o["lookalike"]) if o["lookalike"]["cases"] else "-" for o in outs]
+
+    def after(lk: dict) -> str:
+        right_after = round((lk["resolved"] - lk["named_at_once"]) * lk["cases"])
+        return f"{lk['declared']}, of which {right_after} named right after"
+
     rows = [
-        ["`multi.all_named`: every hidden library effect named", of(multi["all_named"], multi["cases"]), ">= 0.8"],
+        ["`multi.all_named`: every hidden library effect named", *multi(lambda m: of(m["all_named"], m["cases"])),
+         ">= 0.8"],
         ["`multi.visible_named`: every hidden library effect that its true form alone shows (>= 10 %) named",
-         of(multi["visible_named"], multi["cases"]), ""],
-        ["`multi.extra_named`: a library effect named that is not hidden", str(multi["extra_named"]), "<= 1"],
-        ["`lookalike.wrong_named`: a wrong effect named without a group", str(look["wrong_named"]), "0"],
+         *multi(lambda m: of(m["visible_named"], m["cases"])), ""],
+        ["`multi.extra_named`: a library effect named that is not hidden",
+         *multi(lambda m: str(m["extra_named"])), "<= 1"],
+        ["`lookalike.wrong_named`: a wrong effect named without a group", *look(lambda lk: str(lk["wrong_named"])),
+         "0"],
         ["`lookalike.resolved`: named right at once, or declared and named right after the experiment",
-         of(look["resolved"], look["cases"]), ">= 0.8"],
-        ["... named right at once", of(look["named_at_once"], look["cases"]), ""],
-        ["... declared as a group, the experiment flown", f"{look['declared']}, of which {after} named right after",
-         ""],
+         *look(lambda lk: of(lk["resolved"], lk["cases"])), ">= 0.8"],
+        ["... named right at once", *look(lambda lk: of(lk["named_at_once"], lk["cases"])), ""],
+        ["... declared as a group, the experiment flown", *look(after), ""],
         ["time per case (2 or 3 diagnoses, two cases at once, a busy machine)",
-         f"{o['seconds_per_case']:.0f} s median", ""],
+         *[f"{o['seconds_per_case']:.0f} s median" for o in outs], ""],
     ]
-    return table(["figure", "seed 8", "target"], rows)
+    return table(["figure", *[label for _, label in SEVERAL_SEEDS], "target"], rows)
 
 
 def hidden_effects_table() -> str:
