@@ -141,6 +141,7 @@ class PhysicalModel(Model):
         self._scale = 1000.0 / mass_mg
         self._theta = np.array([p.init for p in self.all_params()])
         self._columns: dict | None = None  # see set_columns
+        self._groups: _Groups | None = None  # see set_groups
         self.fit_info: dict = {}
 
     @classmethod
@@ -204,7 +205,29 @@ class PhysicalModel(Model):
         unknown = set(columns) - set(BASE_NAMES)
         if unknown:
             raise ValueError(f"only base parameters can differ per column, not {sorted(unknown)}")
+        if self._groups is not None:
+            raise ValueError("set_columns: parameters per group of columns are set (set_groups); clear them first")
         self._columns = {BASE_NAMES.index(n): np.asarray(v, dtype=float) for n, v in columns.items()}
+
+    def set_groups(self, thetas: np.ndarray | None, width: int = 0) -> None:
+        """Every parameter differing per group of batch columns in :meth:`predict_t`, None to share them again.
+
+        ``thetas`` (G, P): the values of :meth:`all_params` (extra terms' included) for G groups of ``width``
+        consecutive columns each, a batch of G * width columns (e.g. the perturbed parameter vectors of a
+        Jacobian's columns, rolled out at once). Each group steps with the same arithmetic as a model with its
+        own parameters (the same results, column by column); an extra term is called once per run of
+        consecutive groups with the same parameters, on that run's columns, always with scalar parameters.
+        """
+        if thetas is None:
+            self._groups = None
+            return
+        if self._columns is not None:
+            raise ValueError("set_groups: base parameters per column are set (set_columns); clear them first")
+        thetas = np.asarray(thetas, dtype=float)
+        if thetas.ndim != 2 or thetas.shape[1] != self.n_params or width < 1:
+            raise ValueError(f"set_groups: thetas must be (groups, {self.n_params}) and width >= 1, "
+                             f"not {thetas.shape} and {width}")
+        self._groups = _Groups(thetas, int(width), self._param_names(), self.terms)
 
     @property
     def n_params(self) -> int:
@@ -234,31 +257,36 @@ class PhysicalModel(Model):
         ``ut_prev`` (3, n): the previous step's commands, which ``hold="exact"`` uses (default: ``ut``).
         """
         n, h = self.options["substeps"], dt_s / self.options["substeps"]
-        th = self._theta
-        if self._columns is not None:
+        th, groups = self._theta, self._groups
+        if groups is not None:
+            if xt.shape[1] != groups.columns:
+                raise ValueError(f"predict_t: a batch of {xt.shape[1]} columns, but set_groups made "
+                                 f"{groups.columns}")
+            th = groups.th
+        elif self._columns is not None:
             th = list(th)
             for i, values in self._columns.items():
                 th[i] = values
         for i in range(n):
-            xt = self._step_t(xt, ut, h, th, ut_prev if i == 0 else None)
+            xt = self._step_t(xt, ut, h, th, ut_prev if i == 0 else None, groups)
         return xt
 
-    def _step_t(self, x, u, h, th, u_prev=None):
-        """One step of h [s] on component-major arrays: x (6, n), u and u_prev (3, n) -> (6, n)."""
+    def _step_t(self, x, u, h, th, u_prev=None, groups=None):
+        """One step of h [s] on component-major arrays: x (6, n), u and u_prev (3, n) -> (6, n); ``groups``: the
+        :class:`_Groups` of :meth:`set_groups` (``th`` is then theirs)."""
         p, v = x[:3], x[3:]
         s = self._scale
         f, v_geo = u, v  # the command whose force acts, the velocity the geometry is taken at
         if self._exact:  # see the module doc
-            if np.ndim(th[2]):  # a drag per column (set_columns)
+            if groups is not None:
+                f1, w, decay = groups.hold(s, h)
+            elif np.ndim(th[2]):  # a drag per column (set_columns)
                 z1 = s * h * np.maximum(th[2], 0.0)
                 f1 = phi1(z1)
                 w = np.where(z1 > 1e-6, (1.0 - f1) / (np.maximum(z1, 1e-300) * f1), 0.5 + z1 / 12.0)
                 decay = np.exp(-z1)
             else:
-                z1 = s * h * max(float(th[2]), 0.0)
-                f1 = -math.expm1(-z1) / z1 if z1 >= 1e-6 else 1.0 - 0.5 * z1  # phi1 on a scalar
-                w = (1.0 - f1) / (z1 * f1) if z1 > 1e-6 else 0.5 + z1 / 12.0
-                decay = math.exp(-z1)
+                f1, w, decay = _hold_factors(s, h, th[2])
             if u_prev is not None:
                 f = w * u + (1.0 - w) * u_prev
             drive = th[0] * f
@@ -269,15 +297,17 @@ class PhysicalModel(Model):
         a[2] += th[4]
         drag = th[1] * sin_a + th[2]
         if self.terms:
-            # under set_columns the terms read the shared values of the base parameters
-            named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
+            if groups is not None:
+                runs = groups.runs
+            else:  # under set_columns the terms read the shared values of the base parameters
+                named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
+                runs = [[(None, _term_params(term, named))] for term in self.terms]
             slowing = 0.0
-            for term, moving in zip(self.terms, self._velocity_terms()):
-                prm = _term_params(term, named)
-                ft = term.force(p.T, v_geo.T, f.T, prm).T
+            for term, moving, run in zip(self.terms, self._velocity_terms(), runs):
+                ft = _term_force_t(term, run, p, v_geo, f)
                 a += ft
                 if moving:  # the part of its force that grows with the velocity, along it
-                    ft = ft - term.force(p.T, np.zeros_like(v_geo.T), f.T, prm).T
+                    ft = ft - _term_force_t(term, run, p, np.zeros_like(v_geo), f)
                     slowing = slowing - (ft * v_geo).sum(0)
             # a drag among the terms joins the exact decay (a stiff quadratic drag cannot blow up): rate
             # lambda_e = -(F(v) - F(0)) . v / |v|^2 >= 0, and lambda_e v is given back to the held forces
@@ -471,6 +501,58 @@ class PhysicalModel(Model):
                                          meta.get("effect_terms", {}))
         self._theta = np.asarray(arrays["theta"], dtype=float)
         self.fit_info = meta.get("fit_info", {})
+
+
+def _hold_factors(s: float, h: float, cd1) -> tuple[float, float, float]:
+    """``hold="exact"``'s factors of a step of h [s] with drag Cd1 (scalars): (phi1(z), the command's weight
+    phi2(z) / phi1(z), exp(-z)) with z = s h Cd1, s = 1000 / m."""
+    z1 = s * h * max(float(cd1), 0.0)
+    f1 = -math.expm1(-z1) / z1 if z1 >= 1e-6 else 1.0 - 0.5 * z1  # phi1 on a scalar
+    w = (1.0 - f1) / (z1 * f1) if z1 > 1e-6 else 0.5 + z1 / 12.0
+    return f1, w, math.exp(-z1)
+
+
+def _term_force_t(term, run, p, v, u):
+    """(3, n) force of an extra term on component-major p, v, u (3, n): ``run`` lists (columns, parameters),
+    one call per entry on those columns (None: all), each on arrays laid out as a batch of its own."""
+    if len(run) == 1 and run[0][0] is None:
+        return term.force(p.T, v.T, u.T, run[0][1]).T
+    out = np.empty_like(p)
+    for cols, prm in run:
+        own = [np.ascontiguousarray(a[:, cols]).T for a in (p, v, u)]
+        out[:, cols] = term.force(*own, prm).T
+    return out
+
+
+class _Groups:
+    """The per-group parameters of :meth:`PhysicalModel.set_groups`: ``th`` the six base parameters (a scalar
+    where every group has the same value, else (G * width,) per column), ``runs`` per extra term the
+    (columns, parameters) of each run of consecutive groups with the same parameters, ``columns`` G * width."""
+
+    def __init__(self, thetas: np.ndarray, width: int, names: tuple, terms):
+        self.thetas, self.width, self.columns = thetas, width, len(thetas) * width
+        self.th = [self._per_column(thetas[:, i]) for i in range(len(BASE_NAMES))]
+        named = [dict(zip(names, row)) for row in thetas]
+        self.runs = []
+        for term in terms:
+            prms = [_term_params(term, nm) for nm in named]
+            run, first = [], 0
+            for g in range(1, len(prms) + 1):
+                if g == len(prms) or prms[g] != prms[first]:
+                    run.append((slice(first * width, g * width), prms[first]))
+                    first = g
+            self.runs.append([(None, run[0][1])] if len(run) == 1 else run)
+        self._hold: dict = {}
+
+    def _per_column(self, values: np.ndarray):
+        return values[0] if np.all(values == values[0]) else np.repeat(values, self.width)
+
+    def hold(self, s: float, h: float):
+        """:func:`_hold_factors` of each group's Cd1, per column (scalars when the groups share Cd1)."""
+        if h not in self._hold:
+            factors = np.array([_hold_factors(s, h, cd1) for cd1 in self.thetas[:, 2]])
+            self._hold[h] = tuple(self._per_column(factors[:, k]) for k in range(3))
+        return self._hold[h]
 
 
 def _step_scalar(x, u, h, th, s, pb):
