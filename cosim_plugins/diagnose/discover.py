@@ -103,13 +103,51 @@ def _namespace(p, v, u) -> dict:
             "wall": np.maximum(WALL_MM - np.max(np.abs(p), axis=1), 0.0)}
 
 
+class _LazyNamespace(dict):
+    """:func:`_namespace`'s names, each made when an expression first reads it (a rollout step's force has
+    mostly zero coefficients: most names are never needed)."""
+
+    def __init__(self, p, v, u):
+        super().__init__(np=np)
+        self.pvu = p, v, u
+
+    def __missing__(self, name):
+        p, v, u = self.pvu
+        if name in _COLUMNS:
+            a, k = _COLUMNS[name]
+            value = (p, v, u)[a][:, k]
+        elif name == "one":
+            value = np.ones(len(p))
+        elif name in ("speed", "spin"):
+            w = v if name == "speed" else u
+            value = np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2])
+        elif name == "wall":
+            value = np.maximum(WALL_MM - np.max(np.abs(p), axis=1), 0.0)
+        else:
+            raise KeyError(name)
+        self[name] = value
+        return value
+
+
+_COLUMNS = {n: (a, k) for a, names in enumerate((("x", "y", "z"), ("vx", "vy", "vz"), ("ux", "uy", "uz")))
+            for k, n in enumerate(names)}
+_CODE: dict = {}  # expression -> its compiled code
+
+
+def _compiled(expr: str):
+    if expr not in _CODE:
+        _CODE[expr] = compile(expr, "<term>", "eval")
+    return _CODE[expr]
+
+
 def term_force(terms, coefs, p, v, u) -> np.ndarray:
     """(n, 3) force [uN] of ``terms`` with coefficients ``coefs`` at p, v, u (n, 3)."""
-    ns = _namespace(p, v, u)
-    f = np.zeros_like(p, dtype=float)
+    ns = None
+    f = np.zeros((len(p), 3))
     for t, c in zip(terms, coefs):
         if c != 0.0:
-            f[:, t.axis] += c * eval(t.expr, ns)  # noqa: S307 (expressions of this module's own table)
+            ns = _LazyNamespace(p, v, u) if ns is None else ns
+            f[:, t.axis] += c * eval(_compiled(t.expr), {"np": np}, ns)  # noqa: S307 (this module's own table)
     return f
 
 

@@ -77,8 +77,8 @@ class OpenLoop:
     def errors(self, jm: "JointModel", tl, held: "Solve | None" = None) -> tuple[np.ndarray, "Solve"]:
         """((w * H * 3,) predicted - measured [mm] (window-major), 0 where a window does not reach step k;
         the initial-state solve), the solve held from ``held`` when given (see :meth:`JointModel.projected`)."""
-        ev, solve = jm.open_loop(tl, self.starts, self.lead, {k: k for k in self.steps}, passes=1, held=held)
-        return np.stack([np.where(e["valid"][:, None], e["err"], 0.0) for e in ev.values()], axis=1).reshape(-1), solve
+        valid, err, solve = jm.open_loop_errors(tl, self.starts, self.lead, self.steps, passes=1, held=held)
+        return np.where(valid[..., None], err, 0.0).reshape(-1), solve
 
 
 @dataclass(frozen=True)
@@ -144,6 +144,7 @@ class JointModel:
         self.per_unit: UnitOffsets | None = None  # base parameters that differ per log or block of time
         self._commands = None  # (timeline, input parameters, commands) of :meth:`commands`
         self._variants: _Variants | None = None  # a Jacobian's parameter vectors rolled out together
+        self._fitted_rows = None  # (timeline, starts, length, fit_rows, target, use, tz, positions) of the last
         start = {q.name: q.init for q in self.param_list}
         start.update(host.params() if supports_effects(host) else {})
         start.update(base_params or {})
@@ -219,7 +220,7 @@ class JointModel:
         return [made[self._input_key(prm)] for prm in prms]
 
     def __getstate__(self):  # sent between processes without the remembered commands (and their timeline)
-        return {**self.__dict__, "_commands": None, "_variants": None}
+        return {**self.__dict__, "_commands": None, "_variants": None, "_fitted_rows": None}
 
     def lookback(self, prm: dict | None = None) -> int:
         """Rows before each window the rollouts start at: what the sensor effects read (see the effect doc);
@@ -274,10 +275,15 @@ class JointModel:
         u_effs = [u_eff] * groups if u_eff is not None else self._commands_of(tl, prms)
 
         def batch(r):  # (w, m + L) rows -> (m + L, 3, G c w) commands, group-major, C-contiguous
-            if all(u is u_effs[0] for u in u_effs):
-                return np.ascontiguousarray(np.tile(np.nan_to_num(u_effs[0][r]).transpose(1, 2, 0), (1, 1, c * groups)))
-            return np.ascontiguousarray(np.concatenate(
-                [np.tile(np.nan_to_num(u[r]).transpose(1, 2, 0), (1, 1, c)) for u in u_effs], axis=2))
+            own = {id(u): u for u in u_effs}
+            own = {k: np.nan_to_num(u[r]).transpose(1, 2, 0)[:, :, None, :] for k, u in own.items()}
+            out = np.empty((m + length, 3, groups, c, w))
+            if len(own) == 1:
+                out[:] = own[id(u_effs[0])][:, :, None]
+            else:
+                for g, u in enumerate(u_effs):
+                    out[:, :, g] = own[id(u)]
+            return out.reshape(m + length, 3, groups * c * w)
 
         Ut = batch(rows)
         Up = batch(tl.previous[rows]) if self._held else None
@@ -319,9 +325,7 @@ class JointModel:
         Returns:
             (pred (w, L + 1, 3) predicted measurements after the correction, the :class:`Solve`).
         """
-        target = targets(tl, starts, length)
-        use = fit_rows & np.all(np.isfinite(target), axis=2)
-        tz = np.where(use[..., None], target, 0.0)
+        target, use, tz = self._targets(tl, starts, length, fit_rows)
         m = self.lookback()
         if held is not None and held.lookback == m:
             q0 = self.trajectories(tl, starts, length, held.x0[None], u_eff)[0]
@@ -360,22 +364,38 @@ class JointModel:
 
     def open_loop(self, tl, starts, lead, steps, passes: int = 2, held: Solve | None = None):
         """(:meth:`evaluate`'s errors, the initial-state :class:`Solve`), the solve held from ``held`` if given."""
-        length = lead + max(steps.values())
+        valid, err, solve = self.open_loop_errors(tl, starts, lead, tuple(steps.values()), passes, held)
+        return {key: {"valid": valid[:, h].copy(), "err": err[:, h].copy()} for h, key in enumerate(steps)}, solve
+
+    def open_loop_errors(self, tl, starts, lead, ks, passes: int = 2, held: Solve | None = None):
+        """(valid (w, H) bool, err (w, H, 3) predicted - measured [mm], the :class:`Solve`): :meth:`open_loop`'s
+        errors ``ks`` (H,) steps after the lead-in, as arrays (NaN where not valid)."""
+        ks = np.asarray(ks, dtype=np.int64)
+        length = lead + int(ks.max())
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
         fit_rows[:, : lead + 1] = True
         with np.errstate(all="ignore"):  # a model that diverges shows as a huge error, not a warning
             pred, solve = self.projected(tl, starts, length, fit_rows, passes=passes, held=held)
-        target = targets(tl, starts, length)
-        out = {}
-        for key, k in steps.items():
-            row = lead + k
-            valid = (tl.run[starts] >= row) & np.all(np.isfinite(target[:, row]), axis=1)
-            err = np.where(valid[:, None], pred[:, row] - np.nan_to_num(target[:, row]), np.nan)
-            with np.errstate(all="ignore"):
-                diverged = valid & ~(np.linalg.norm(err, axis=1) <= DIVERGED_MM)  # NaN too
-            err[diverged] = DIVERGED_MM / math.sqrt(3.0)
-            out[key] = {"valid": valid, "err": err}
-        return out, solve
+        rows = lead + ks
+        target = self._targets(tl, starts, length, fit_rows)[0][:, rows]  # (w, H, 3)
+        valid = (tl.run[starts][:, None] >= rows[None, :]) & np.all(np.isfinite(target), axis=2)
+        err = np.where(valid[..., None], pred[:, rows] - np.nan_to_num(target), np.nan)
+        with np.errstate(all="ignore"):
+            diverged = valid & ~(np.linalg.norm(err, axis=2) <= DIVERGED_MM)  # NaN too
+        err[diverged] = DIVERGED_MM / math.sqrt(3.0)
+        return valid, err, solve
+
+    def _targets(self, tl, starts, length, fit_rows):
+        """(:func:`targets` (w, L + 1, 3), the rows that fit the initial state: ``fit_rows`` and measured (w, L + 1),
+        the targets there and 0 elsewhere), remembered for the last windows (a Jacobian's columns reuse them)."""
+        last = self._fitted_rows
+        if not (last is not None and last[0] is tl and last[4] is not None and last[7] is tl.p and last[2] == length
+                and (last[1] is starts or np.array_equal(last[1], starts)) and np.array_equal(last[3], fit_rows)):
+            target = targets(tl, starts, length)
+            use = fit_rows & np.all(np.isfinite(target), axis=2)
+            last = (tl, starts, length, fit_rows, target, use, np.where(use[..., None], target, 0.0), tl.p)
+            self._fitted_rows = last
+        return last[4:7]
 
 
 def _corrected(q0, S, use, tz, G=None, Su=None):
