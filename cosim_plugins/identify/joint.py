@@ -266,7 +266,7 @@ class JointModel:
                 raise ValueError(f"model {self.host.name!r}: rollouts of several parameter vectors need a host "
                                  "with set_groups and no parameters per unit")
             groups, prms = len(thetas), [dict(zip(self.names, th)) for th in thetas]
-        m = self.lookback(prms[0])
+        m = self.lookback() if thetas is None else self.lookback(prms[0])
         if any(self.lookback(prm) != m for prm in prms[1:]):
             raise ValueError("rollouts: the parameter vectors need different lookbacks; roll them out apart")
         rows = np.minimum(starts[:, None] + np.arange(-m, length)[None, :], tl.n - 1)
@@ -389,7 +389,7 @@ class JointModel:
         """(:func:`targets` (w, L + 1, 3), the rows that fit the initial state: ``fit_rows`` and measured (w, L + 1),
         the targets there and 0 elsewhere), remembered for the last windows (a Jacobian's columns reuse them)."""
         last = self._fitted_rows
-        if not (last is not None and last[0] is tl and last[4] is not None and last[7] is tl.p and last[2] == length
+        if not (last is not None and last[0] is tl and last[7] is tl.p and last[2] == length
                 and (last[1] is starts or np.array_equal(last[1], starts)) and np.array_equal(last[3], fit_rows)):
             target = targets(tl, starts, length)
             use = fit_rows & np.all(np.isfinite(target), axis=2)

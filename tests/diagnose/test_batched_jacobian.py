@@ -143,3 +143,48 @@ def test_groups_step_like_separate_models():
         assert np.array_equal(batch[:, 4 * g:4 * g + 4], one)
     with pytest.raises(ValueError, match="groups"):
         host.set_groups(thetas[:, :5], 4)
+
+
+def test_a_term_runs_once_for_the_groups_that_agree_on_what_it_reads():
+    """A term reading w_x always and w_y only far from the centre: groups that differ in other parameters share
+    its calls, and a call that reads w_y for the first time is redone with the groups split by it."""
+    from cosim_plugins.identify.effect import Effect, Param
+
+    def push(p, v, u, prm):
+        far = np.abs(p[:, 0]) > 30.0
+        f = np.zeros_like(p)
+        f[:, 0] = prm["w_x"]
+        if far.any():
+            f[far, 1] = prm["w_y"] * p[far, 1]
+        return f
+
+    term = Effect(name="push", params=(Param("w_x", 0.0), Param("w_y", 0.0)), force=push)
+    host = lookup("model", "physical")(hold="exact", terms=[term])
+    names = [q.name for q in host.all_params()]
+    thetas = np.array([[0.1, 0.0, 0.05, 0.004, -0.3, 0.02, 1.0, -0.5]] * 4)
+    thetas[1, 0] = 0.12  # another k: the term does not read it
+    thetas[2, 7] = 0.5  # another w_y: read only once the swimmer is far out
+    thetas[3, 6] = 2.0  # another w_x
+    x = np.zeros((6, 8))
+    x[3] = 400.0  # out past x = 30 mm after a few steps
+    u = np.tile([[5.0], [0.0], [2.0]], (1, 8))
+    calls = []
+    host.terms[0] = replace(term, force=lambda p, v, w, prm: calls.append(len(p)) or push(p, v, w, prm))
+    host._velocity_terms()
+    calls.clear()
+    host.set_groups(thetas, 2)
+    xb, out = x, []
+    for _ in range(12):
+        xb = host.predict_t(xb, u, 0.02, u)
+        out.append(xb)
+    host.set_groups(None)
+    # step 1: every group alone; then groups 0-2 (same w_x) together; once far out, the merged call reads w_y
+    # and is redone split by it: 0 and 1 together (another k only), 2 and 3 alone
+    near = [6, 2] * 4
+    assert calls == [2, 2, 2, 2] + near + [6] + [4, 2, 2] * 7
+    for g in range(4):
+        host.set_params(dict(zip(names, thetas[g])))
+        xs = x[:, 2 * g:2 * g + 2]
+        for j in range(12):
+            xs = host.predict_t(xs, u[:, :2], 0.02, u[:, :2])
+            assert np.array_equal(out[j][:, 2 * g:2 * g + 2], xs)
