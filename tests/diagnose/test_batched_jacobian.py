@@ -188,3 +188,17 @@ def test_a_term_runs_once_for_the_groups_that_agree_on_what_it_reads():
         for j in range(12):
             xs = host.predict_t(xs, u[:, :2], 0.02, u[:, :2])
             assert np.array_equal(out[j][:, 2 * g:2 * g + 2], xs)
+
+
+def test_discovery_sensitivities_split_over_processes_are_the_same(timeline):
+    from cosim_plugins.diagnose.discover import _sensitivities
+
+    tl = timeline
+    jm = _joint("exact", PARAMS)
+    ol = OpenLoop.upto(tl.window_starts(35, 0.6)[::15], 10, 25)
+    cols = [jm.names.index(n) for n in ("background_flow.w_x", "actuation_lag.tau", "sensor_latency.delay")]
+    host = [jm.names.index(n) for n in ("k", "Cd1")]
+    one = _sensitivities(jm, tl, ol, cols, host, jobs=1)
+    two = _sensitivities(jm, tl, ol, cols, host, jobs=2)
+    assert all(np.array_equal(a, b) for a, b in zip(one, two))
+    assert one[1].shape == (len(one[0]), 3) and one[2].shape == (len(one[0]), 2)
