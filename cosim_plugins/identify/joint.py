@@ -57,7 +57,7 @@ DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger tha
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
 POLISH_NFEV = 8  # evaluations of the open-loop polish
-MAX_BATCH_COLUMNS = 16384  # batch columns (windows x parameter vectors) of one rollout of a Jacobian's columns
+MAX_BATCH_COLUMNS = 4096  # batch columns a rollout steps at once (wider ones miss the caches: slower)
 
 
 @dataclass(frozen=True)
@@ -290,16 +290,28 @@ class JointModel:
         xt = np.ascontiguousarray(x0.reshape(c * w, 6).T)
         if groups > 1:
             xt = np.ascontiguousarray(np.tile(xt, (1, groups)))
-        out = np.empty((m + length + 1, 3, groups * c * w))
+        n = groups * c * w
+        out = np.empty((m + length + 1, 3, n))
         out[0] = xt[:3]
+        # a wide batch of one parameter vector is stepped in pieces that stay in the caches
+        pieces = [slice(0, n)] if thetas is not None or n <= MAX_BATCH_COLUMNS else \
+            [slice(a, min(a + MAX_BATCH_COLUMNS, n)) for a in range(0, n, MAX_BATCH_COLUMNS)]
+        columns = None
         if self.per_unit is not None:
-            self.host.set_columns({n: np.tile(v, c) for n, v in self.per_unit.values(self.prm, starts).items()})
+            columns = {name: np.tile(v, c) for name, v in self.per_unit.values(self.prm, starts).items()}
         if thetas is not None:
             self.host.set_groups(np.asarray(thetas)[:, : self.host.n_params], c * w)
         try:
-            for j in range(m + length):
-                xt = self.host.predict_t(xt, Ut[j], self.dt_s, Up[j]) if self._held else self._step(xt, Ut[j])
-                out[j + 1] = xt[:3]
+            for cols in pieces:
+                whole = len(pieces) == 1
+                x = xt if whole else np.ascontiguousarray(xt[:, cols])
+                U = Ut if whole else np.ascontiguousarray(Ut[:, :, cols])
+                P = Up if whole or Up is None else np.ascontiguousarray(Up[:, :, cols])
+                if columns is not None:
+                    self.host.set_columns({name: v[cols] for name, v in columns.items()})
+                for j in range(m + length):
+                    x = self.host.predict_t(x, U[j], self.dt_s, P[j]) if self._held else self._step(x, U[j])
+                    out[j + 1, :, cols] = x[:3]
         finally:
             if self.per_unit is not None:
                 self.host.set_columns(None)

@@ -202,3 +202,18 @@ def test_discovery_sensitivities_split_over_processes_are_the_same(timeline):
     two = _sensitivities(jm, tl, ol, cols, host, jobs=2)
     assert all(np.array_equal(a, b) for a, b in zip(one, two))
     assert one[1].shape == (len(one[0]), 3) and one[2].shape == (len(one[0]), 2)
+
+
+@pytest.mark.parametrize("per_unit", [False, True])
+def test_a_wide_rollout_stepped_in_pieces_is_the_same(timeline, per_unit, monkeypatch):
+    import cosim_plugins.identify.joint as joint
+
+    tl = timeline
+    jm = _joint("exact", PARAMS)
+    if per_unit:
+        jm.per_unit = UnitOffsets(("Cd1",), np.where(tl.log > 0, 1, 0), np.array([[0.0], [0.004]]))
+    starts = tl.window_starts(35, 0.6)[::5]
+    x0 = np.stack([tl.x_lin[starts - 2] + d for d in (0.0, 0.5, 1.0)])  # (3, w, 6)
+    whole = jm.rollouts(tl, starts, 30, x0)[0]
+    monkeypatch.setattr(joint, "MAX_BATCH_COLUMNS", 37)  # pieces that split windows and variants
+    assert np.array_equal(jm.rollouts(tl, starts, 30, x0)[0], whole)
