@@ -219,8 +219,9 @@ class PhysicalModel(Model):
         ``thetas`` (G, P): the values of :meth:`all_params` (extra terms' included) for G groups of ``width``
         consecutive columns each, a batch of G * width columns (e.g. the perturbed parameter vectors of a
         Jacobian's columns, rolled out at once). Each group steps with the same arithmetic as a model with its
-        own parameters (the same results, column by column); an extra term is called once per run of
-        consecutive groups with the same parameters, on that run's columns, always with scalar parameters.
+        own parameters (the same results, column by column); an extra term is called once per set of groups
+        that agree on the parameters it reads, on that set's columns, always with scalar parameters
+        (:class:`_TermGroups`).
         """
         if thetas is None:
             self._groups = None
