@@ -103,13 +103,51 @@ def _namespace(p, v, u) -> dict:
             "wall": np.maximum(WALL_MM - np.max(np.abs(p), axis=1), 0.0)}
 
 
+class _LazyNamespace(dict):
+    """:func:`_namespace`'s names, each made when an expression first reads it (a rollout step's force has
+    mostly zero coefficients: most names are never needed)."""
+
+    def __init__(self, p, v, u):
+        super().__init__(np=np)
+        self.pvu = p, v, u
+
+    def __missing__(self, name):
+        p, v, u = self.pvu
+        if name in _COLUMNS:
+            a, k = _COLUMNS[name]
+            value = (p, v, u)[a][:, k]
+        elif name == "one":
+            value = np.ones(len(p))
+        elif name in ("speed", "spin"):
+            w = v if name == "speed" else u
+            value = np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2])
+        elif name == "wall":
+            value = np.maximum(WALL_MM - np.max(np.abs(p), axis=1), 0.0)
+        else:
+            raise KeyError(name)
+        self[name] = value
+        return value
+
+
+_COLUMNS = {n: (a, k) for a, names in enumerate((("x", "y", "z"), ("vx", "vy", "vz"), ("ux", "uy", "uz")))
+            for k, n in enumerate(names)}
+_CODE: dict = {}  # expression -> its compiled code
+
+
+def _compiled(expr: str):
+    if expr not in _CODE:
+        _CODE[expr] = compile(expr, "<term>", "eval")
+    return _CODE[expr]
+
+
 def term_force(terms, coefs, p, v, u) -> np.ndarray:
     """(n, 3) force [uN] of ``terms`` with coefficients ``coefs`` at p, v, u (n, 3)."""
-    ns = _namespace(p, v, u)
-    f = np.zeros_like(p, dtype=float)
+    ns = None
+    f = np.zeros((len(p), 3))
     for t, c in zip(terms, coefs):
         if c != 0.0:
-            f[:, t.axis] += c * eval(t.expr, ns)  # noqa: S307 (expressions of this module's own table)
+            ns = _LazyNamespace(p, v, u) if ns is None else ns
+            f[:, t.axis] += c * eval(_compiled(t.expr), {"np": np}, ns)  # noqa: S307 (this module's own table)
     return f
 
 
@@ -132,7 +170,7 @@ def _coef_unit(t: Term) -> str:
 # ---------------------------------------------------------------- the regression
 
 
-def discover(reference, ttr, tte, train, test, fit_fn, say=None) -> dict:
+def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1) -> dict:
     """Sparse residual-force regression on top of ``reference`` (a fitted JointModel).
 
     ``train`` and ``test`` are :class:`~cosim_plugins.identify.joint.OpenLoop` windows of the training and
@@ -141,7 +179,8 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None) -> dict:
     ``fit_fn(effect) -> (_Fitted, summary, ev)`` refits the reference with an effect and evaluates it
     on the held-out data (the diagnosis's own refit). Returns a dict with ``status`` ("found",
     "none", "too_short"), ``explanation`` (a sentence), and when found ``terms``, ``params``,
-    ``words``, ``source`` (the effect file) and the refit's ``fitted``/``summary``/``ev``.
+    ``words``, ``source`` (the effect file) and the refit's ``fitted``/``summary``/``ev``. The sensitivities'
+    columns are shared among ``jobs`` forked processes.
     """
     from cosim_plugins.identify.joint import JointModel, OpenLoop
 
@@ -164,8 +203,8 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None) -> dict:
     host_idx = [i for i, n in enumerate(jm.names) if "." not in n]
     term_idx = [jm.names.index(f"_library.{t.name}") for t in TERMS]
     say(f"discover: sensitivities of {n_terms} candidate terms on {len(train.starts)} + {len(test_win)} windows")
-    r_tr, J_tr, H_tr = _sensitivities(jm, ttr, train, term_idx, host_idx)
-    r_te, J_te, H_te = _sensitivities(jm, tte, test, term_idx, host_idx)
+    r_tr, J_tr, H_tr = _sensitivities(jm, ttr, train, term_idx, host_idx, jobs)
+    r_te, J_te, H_te = _sensitivities(jm, tte, test, term_idx, host_idx, jobs)
     # the host's own parameters stay free: project their columns out of the training problem
     Q, _ = np.linalg.qr(H_tr)
     Jp = J_tr - Q @ (Q.T @ J_tr)
@@ -258,10 +297,12 @@ def _term_scales(tl, starts, length) -> np.ndarray:
     return 0.1 / np.maximum(rms, 1e-9)
 
 
-def _sensitivities(jm, tl, windows, term_idx, host_idx):
+def _sensitivities(jm, tl, windows, term_idx, host_idx, jobs: int = 1):
     """(r (N,), J (N, M), H (N, K)): measured minus predicted positions of the open-loop ``windows`` and their
     sensitivities to the term coefficients and the host parameters (forward differences of :data:`FD_STEP`
-    scales, the initial-state solve held: :class:`~cosim_plugins.identify.joint.HeldJacobian`)."""
+    scales, the initial-state solve held: :class:`~cosim_plugins.identify.joint.HeldJacobian`), the columns
+    shared among ``jobs`` forked processes (:func:`~cosim_plugins.diagnose.fitting.fork_map`)."""
+    from cosim_plugins.diagnose.fitting import fork_map
     from cosim_plugins.identify.joint import HeldJacobian
 
     def errors(held):  # predicted - measured
@@ -272,7 +313,10 @@ def _sensitivities(jm, tl, windows, term_idx, host_idx):
     theta0 = jm.theta.copy()
     fd = HeldJacobian(jm, errors, step=FD_STEP)
     e0 = fd(theta0)
-    return -e0, fd.jac(theta0, term_idx), fd.jac(theta0, host_idx)
+    cols = np.array([*term_idx, *host_idx])
+    parts = np.array_split(cols, max(1, min(jobs, len(cols))))
+    J = np.hstack(fork_map(lambda i: fd.jac(theta0, parts[i]), len(parts), jobs, "discovery sensitivities"))
+    return -e0, J[:, : len(term_idx)], J[:, len(term_idx):]
 
 
 # ---------------------------------------------------------------- words and the effect file

@@ -66,18 +66,9 @@ class Fitter:
         processes (they inherit this fitter's data; each returns its fit). One process when ``jobs`` is 1, the
         platform cannot fork, or a fit's effects (``before``'s and the new one) cannot be sent between processes
         (then each fit runs here)."""
-        jobs = min(self.s.jobs, len(effects))
-        what = "quick fits" if quick else "candidate fits"
-        forkable = "fork" in multiprocessing.get_all_start_methods()
-        if jobs > 1 and forkable and _picklable([*before.model.effects, *effects]):
-            global _FORKED
-            _FORKED = (self, before, list(effects), quick)
-            try:
-                with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
-                    return list(bar(pool.map(_with_one, range(len(effects))), what, len(effects)))
-            finally:
-                _FORKED = None
-        return [self.with_effects(before, [e], quick=quick) for e in bar(effects, what)]
+        jobs = self.s.jobs if _picklable([*before.model.effects, *effects]) else 1
+        return fork_map(lambda i: self.with_effects(before, [effects[i]], quick=quick), len(effects), jobs,
+                        "quick fits" if quick else "candidate fits")
 
     def refit(self, jm) -> Fit:
         """``jm`` refitted from its own solution (every parameter free, the same budget as a candidate's fit)."""
@@ -126,12 +117,29 @@ def bar(items, what: str, total: int | None = None):
     return tqdm(items, desc=what, total=total, file=sys.stderr, leave=False, disable=None, dynamic_ncols=True)
 
 
-_FORKED = None  # (fitter, before, effects, quick) of Fitter.with_each, inherited by its forked workers
+_FORKED = None  # the function fork_map's forked workers call, inherited from the parent
 
 
-def _with_one(i: int):
-    fitter, before, effects, quick = _FORKED
-    return fitter.with_effects(before, [effects[i]], quick=quick)
+def fork_map(fn, n: int, jobs: int, what: str) -> list:
+    """[fn(i) for i in range(n)], in order, over min(``jobs``, n) forked processes, with a progress bar.
+
+    The workers inherit ``fn`` (a closure over this process's data: it need not pickle; what it returns must).
+    Here, one by one, when ``jobs`` is 1 or the platform cannot fork.
+    """
+    global _FORKED
+    jobs = min(jobs, n)
+    if jobs > 1 and "fork" in multiprocessing.get_all_start_methods():
+        _FORKED = fn
+        try:
+            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
+                return list(bar(pool.map(_call_forked, range(n)), what, n))
+        finally:
+            _FORKED = None
+    return [fn(i) for i in bar(range(n), what)]
+
+
+def _call_forked(i: int):
+    return _FORKED(i)
 
 
 def _picklable(obj) -> bool:

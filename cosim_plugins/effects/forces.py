@@ -19,21 +19,35 @@ from cosim_plugins.identify.effect import Effect, Param
 TANK_HALF_MM = 75.0
 
 
+# The forces run at every step of every rollout, mostly on a few hundred rows: few numpy calls, not einsum.
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n,) row-wise dot products of a and b (n, 3)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
 def _norm(a: np.ndarray) -> np.ndarray:
     """(n, 1) Euclidean norms of the rows of a (n, 3)."""
-    return np.sqrt(np.einsum("ij,ij->i", a, a))[:, None]
+    return np.sqrt(_dot(a, a))[:, None]
+
+
+def _safe(n: np.ndarray) -> np.ndarray:
+    """Norms n with those <= 1e-12 replaced by 1 (a divisor that leaves a zero row zero)."""
+    return np.where(n > 1e-12, n, 1.0)
 
 
 def _unit(a: np.ndarray) -> np.ndarray:
     """Rows of a (n, 3) normalised; zero rows stay zero."""
-    n = _norm(a)
-    return a / np.where(n > 1e-12, n, 1.0)
+    return a / _safe(_norm(a))
 
 
 def _sin_alpha(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(n, 1) sine of the angle of attack between the command u and the velocity v (0 if either vanishes)."""
-    cos = np.clip(np.einsum("ij,ij->i", _unit(u), _unit(v)), -1.0, 1.0)[:, None]
-    return np.sqrt(1.0 - cos * cos)
+    """(n, 1) sine of the angle of attack between the command u and the velocity v (1 if either vanishes:
+    their cosine is then taken as 0)."""
+    cos = _dot(u, v) / (_safe(np.sqrt(_dot(u, u))) * _safe(np.sqrt(_dot(v, v))))
+    np.clip(cos, -1.0, 1.0, out=cos)
+    return np.sqrt(1.0 - cos * cos)[:, None]
 
 
 def wall_distance_mm(p: np.ndarray) -> np.ndarray:
@@ -45,10 +59,8 @@ def wall_distance_mm(p: np.ndarray) -> np.ndarray:
 
 
 def _background_flow(p, v, u, prm):
-    w = np.zeros_like(v)
-    w[:, 0], w[:, 1] = prm["w_x"], prm["w_y"]
     cd = prm.get("Cd0", 0.0) * _sin_alpha(u, v) + prm.get("Cd1", 0.0)
-    return cd * w
+    return cd * np.array([prm["w_x"], prm["w_y"], 0.0])
 
 
 BACKGROUND_FLOW = Effect(
@@ -90,7 +102,7 @@ def _step_out(p, v, u, prm):
     f = _norm(u)
     fso = prm["f_so"]
     slip = np.sqrt(np.maximum(f * f - fso * fso, 0.0))  # the mean spin is f - slip (Adler)
-    return -prm.get("k", 0.0) * slip * _unit(u)
+    return (-prm.get("k", 0.0) * slip / _safe(f)) * u
 
 
 def _step_out_starts(u, dt_s):
@@ -121,19 +133,18 @@ _CROSS = ("c_xy", "c_xz", "c_yz")
 
 
 def _gradient_force(p, v, u, prm):
-    a = _unit(u)
-    on = (_norm(u) > 0.05).astype(float)  # the field is on when a spin is commanded
-    a2 = a * a
-    f = np.zeros_like(p)
-    for k, name in enumerate(_PAIR):  # pair k: (1 - a_k^2) b_k (2 x_k e_k - x_j e_j - x_l e_l)
-        shape = -p.copy()
-        shape[:, k] = 2.0 * p[:, k]
-        f += ((1.0 - a2[:, k]) * prm[name])[:, None] * shape
-    for (j, k), name in zip(((0, 1), (0, 2), (1, 2)), _CROSS):  # pairs j, k: a_j a_k c_jk (x_k e_j + x_j e_k)
-        g = (a[:, j] * a[:, k] * prm[name])
-        f[:, j] += g * p[:, k]
-        f[:, k] += g * p[:, j]
-    return on * f
+    f = _norm(u)
+    a = u / _safe(f)
+    # pair k: (1 - a_k^2) b_k (2 x_k e_k - x_j e_j - x_l e_l); with s_k = (1 - a_k^2) b_k the force along i is
+    # x_i (2 s_i - (s_j + s_l)) = x_i (3 s_i - sum(s))
+    s = (1.0 - a * a) * np.array([prm[n] for n in _PAIR])
+    pair = p * (3.0 * s - s.sum(axis=1, keepdims=True))
+    # pairs j, k: a_j a_k c_jk (x_k e_j + x_j e_k): along i, a_i sum_k c_ik a_k x_k (c symmetric, zero diagonal)
+    q = a * p
+    c_xy, c_xz, c_yz = (prm[n] for n in _CROSS)
+    t = np.stack([c_xy * q[:, 1] + c_xz * q[:, 2], c_xy * q[:, 0] + c_yz * q[:, 2], c_xz * q[:, 0] + c_yz * q[:, 1]],
+                 axis=1)
+    return (f > 0.05) * (pair + a * t)  # the field is on when a spin is commanded
 
 
 GRADIENT_FORCE = Effect(
@@ -154,7 +165,7 @@ GRADIENT_FORCE = Effect(
 
 def _anisotropic_drag(p, v, u, prm):
     a = _unit(u)
-    v_perp = v - np.einsum("ij,ij->i", v, a)[:, None] * a
+    v_perp = v - _dot(v, a)[:, None] * a
     return -prm["c"] * v_perp
 
 

@@ -30,7 +30,11 @@ Every least-squares problem here takes its Jacobian with the initial state's
 sensitivity held at the current parameters (:class:`HeldJacobian`, Kaufman's
 approximation of variable projection): a parameter's column then costs one
 rollout of the windows instead of four (the nominal one and one per
-velocity component).
+velocity component). On a host that takes parameters per group of batch
+columns (the physical model's ``set_groups``) the columns' perturbed
+parameter vectors are rolled out together, as extra batch columns of one
+rollout: the same numbers as one rollout per column, far fewer (and wider)
+array operations.
 """
 
 from __future__ import annotations
@@ -53,6 +57,7 @@ DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger tha
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
 POLISH_NFEV = 8  # evaluations of the open-loop polish
+MAX_BATCH_COLUMNS = 4096  # batch columns a rollout steps at once (wider ones miss the caches: slower)
 
 
 @dataclass(frozen=True)
@@ -72,19 +77,22 @@ class OpenLoop:
     def errors(self, jm: "JointModel", tl, held: "Solve | None" = None) -> tuple[np.ndarray, "Solve"]:
         """((w * H * 3,) predicted - measured [mm] (window-major), 0 where a window does not reach step k;
         the initial-state solve), the solve held from ``held`` when given (see :meth:`JointModel.projected`)."""
-        ev, solve = jm.open_loop(tl, self.starts, self.lead, {k: k for k in self.steps}, passes=1, held=held)
-        return np.stack([np.where(e["valid"][:, None], e["err"], 0.0) for e in ev.values()], axis=1).reshape(-1), solve
+        valid, err, solve = jm.open_loop_errors(tl, self.starts, self.lead, self.steps, passes=1, held=held)
+        return np.where(valid[..., None], err, 0.0).reshape(-1), solve
 
 
 @dataclass(frozen=True)
 class Solve:
     """The initial-state solve of a batch of windows: the state its last pass started from, x0 (w, 6), the
-    sensitivity S (w, L + 1, 3, 6) and its normal matrix G (w, 6, 6), and the rollouts' lookback."""
+    sensitivity S (w, L + 1, 3, 6) and its normal matrix G (w, 6, 6), and the rollouts' lookback; the rows
+    the solve fitted, use (w, L + 1) bool, and S on them, Su (w, 3 (L + 1), 6) (reused by held solves)."""
 
     x0: np.ndarray
     S: np.ndarray
     G: np.ndarray
     lookback: int
+    use: np.ndarray | None = None
+    Su: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -135,6 +143,8 @@ class JointModel:
         self.window_params: dict = {}  # after fit_joint: the short-window fit's parameters, before any polish
         self.per_unit: UnitOffsets | None = None  # base parameters that differ per log or block of time
         self._commands = None  # (timeline, input parameters, commands) of :meth:`commands`
+        self._variants: _Variants | None = None  # a Jacobian's parameter vectors rolled out together
+        self._fitted_rows = None  # (timeline, starts, length, fit_rows, target, use, tz, positions) of the last
         start = {q.name: q.init for q in self.param_list}
         start.update(host.params() if supports_effects(host) else {})
         start.update(base_params or {})
@@ -190,21 +200,42 @@ class JointModel:
         """(n, 3) the timeline's commands after this model's input effects, remembered for the last timeline
         and input parameters (a Jacobian's columns for the other parameters reuse them: on an archive the
         transforms run over every row)."""
-        key = tuple(self.prm[f"{e.name}.{q.name}"] for e in self.inputs for q in e.params)
+        key = self._input_key(self.prm)
         if self._commands is None or self._commands[0] is not tl or self._commands[1] != key:
             self._commands = (tl, key, tl.effective_commands(self.inputs, self.prm))
         return self._commands[2]
 
-    def __getstate__(self):  # sent between processes without the remembered commands (and their timeline)
-        return {**self.__dict__, "_commands": None}
+    def _input_key(self, prm: dict) -> tuple:
+        return tuple(prm[f"{e.name}.{q.name}"] for e in self.inputs for q in e.params)
 
-    def lookback(self) -> int:
-        """Rows before each window the rollouts start at: what the sensor effects read (see the effect doc)."""
+    def _commands_of(self, tl, prms: list) -> list:
+        """[(n, 3) :meth:`commands` with each of the parameters ``prms``], one array per distinct input
+        parameters (the current ones' remembered)."""
+        made: dict = {}
+        now = self._input_key(self.prm)
+        for prm in prms:
+            key = self._input_key(prm)
+            if key not in made:
+                made[key] = self.commands(tl) if key == now else tl.effective_commands(self.inputs, prm)
+        return [made[self._input_key(prm)] for prm in prms]
+
+    def __getstate__(self):  # sent between processes without the remembered commands (and their timeline)
+        return {**self.__dict__, "_commands": None, "_variants": None, "_fitted_rows": None}
+
+    def lookback(self, prm: dict | None = None) -> int:
+        """Rows before each window the rollouts start at: what the sensor effects read (see the effect doc);
+        with the parameters ``prm`` (default the current ones)."""
+        prm = self.prm if prm is None else prm
         m = 0
         for e in self.sensors:
             if e.lookback is not None:
-                m = max(m, int(e.lookback({q.name: self.prm[f"{e.name}.{q.name}"] for q in e.params})))
+                m = max(m, int(e.lookback({q.name: prm[f"{e.name}.{q.name}"] for q in e.params})))
         return m
+
+    def batchable(self) -> bool:
+        """True when rollouts of several parameter vectors can share one batch (see :meth:`rollouts`): a host
+        with parameters per group of columns, and no parameters per unit of rows."""
+        return self.per_unit is None and hasattr(self.host, "set_groups") and hasattr(self.host, "predict_t")
 
     def trajectories(self, tl, starts: np.ndarray, length: int, x0: np.ndarray, u_eff=None) -> np.ndarray:
         """Predicted measurements (c, w, L + 1, 3) at rows ``starts`` (w,) .. + L.
@@ -213,37 +244,87 @@ class JointModel:
         ``starts - m`` (at most back to the segment's first row, whose command the earlier rows repeat);
         ``c`` stacks variants of the same windows (the velocity perturbations);
         commands past a window's usable run are replaced by zeros (callers mask those rows).
+        Inside :meth:`HeldJacobian.jac` a single rollout (c = 1) of one of its columns' parameter vectors is
+        taken from a rollout of them all (:class:`_Variants`).
         """
-        if u_eff is None:
-            u_eff = self.commands(tl)
+        if self._variants is not None and x0.shape[0] == 1:
+            traj = self._variants.take(self, tl, starts, length, x0, u_eff)
+            if traj is not None:
+                return traj
+        return self.rollouts(tl, starts, length, x0, u_eff)[0]
+
+    def rollouts(self, tl, starts: np.ndarray, length: int, x0: np.ndarray, u_eff=None, thetas=None) -> list:
+        """[:meth:`trajectories` (c, w, L + 1, 3) with the parameters of each row of ``thetas`` (G, P)] from
+        one batch of G c w columns (the host's ``set_groups``); ``thetas`` None: the current parameters alone.
+        Every row must have the same :meth:`lookback`; the commands after the input effects are each row's own
+        unless ``u_eff`` (n, 3) is given."""
         c, w = x0.shape[:2]
-        m = self.lookback()
+        if thetas is None:
+            groups, prms = 1, [self.prm]
+        else:
+            if not self.batchable():
+                raise ValueError(f"model {self.host.name!r}: rollouts of several parameter vectors need a host "
+                                 "with set_groups and no parameters per unit")
+            groups, prms = len(thetas), [dict(zip(self.names, th)) for th in thetas]
+        m = self.lookback() if thetas is None else self.lookback(prms[0])
+        if any(self.lookback(prm) != m for prm in prms[1:]):
+            raise ValueError("rollouts: the parameter vectors need different lookbacks; roll them out apart")
         rows = np.minimum(starts[:, None] + np.arange(-m, length)[None, :], tl.n - 1)
         if m:
             rows = np.maximum(rows, tl.segment_start[starts][:, None])
+        u_effs = [u_eff] * groups if u_eff is not None else self._commands_of(tl, prms)
 
-        def batch(r):  # (w, m + L) rows -> (m + L, 3, c w) commands
-            return np.ascontiguousarray(np.tile(np.nan_to_num(u_eff[r]).transpose(1, 2, 0), (1, 1, c)))
+        def batch(r):  # (w, m + L) rows -> (m + L, 3, G c w) commands, group-major, C-contiguous
+            own = {id(u): u for u in u_effs}
+            own = {k: np.nan_to_num(u[r]).transpose(1, 2, 0)[:, :, None, :] for k, u in own.items()}
+            out = np.empty((m + length, 3, groups, c, w))
+            if len(own) == 1:
+                out[:] = own[id(u_effs[0])][:, :, None]
+            else:
+                for g, u in enumerate(u_effs):
+                    out[:, :, g] = own[id(u)]
+            return out.reshape(m + length, 3, groups * c * w)
 
         Ut = batch(rows)
         Up = batch(tl.previous[rows]) if self._held else None
         xt = np.ascontiguousarray(x0.reshape(c * w, 6).T)
-        out = np.empty((m + length + 1, 3, c * w))
+        if groups > 1:
+            xt = np.ascontiguousarray(np.tile(xt, (1, groups)))
+        n = groups * c * w
+        out = np.empty((m + length + 1, 3, n))
         out[0] = xt[:3]
+        # a wide batch of one parameter vector is stepped in pieces that stay in the caches
+        pieces = [slice(0, n)] if thetas is not None or n <= MAX_BATCH_COLUMNS else \
+            [slice(a, min(a + MAX_BATCH_COLUMNS, n)) for a in range(0, n, MAX_BATCH_COLUMNS)]
+        columns = None
         if self.per_unit is not None:
-            self.host.set_columns({n: np.tile(v, c) for n, v in self.per_unit.values(self.prm, starts).items()})
+            columns = {name: np.tile(v, c) for name, v in self.per_unit.values(self.prm, starts).items()}
+        if thetas is not None:
+            self.host.set_groups(np.asarray(thetas)[:, : self.host.n_params], c * w)
         try:
-            for j in range(m + length):
-                xt = self.host.predict_t(xt, Ut[j], self.dt_s, Up[j]) if self._held else self._step(xt, Ut[j])
-                out[j + 1] = xt[:3]
+            for cols in pieces:
+                whole = len(pieces) == 1
+                x = xt if whole else np.ascontiguousarray(xt[:, cols])
+                U = Ut if whole else np.ascontiguousarray(Ut[:, :, cols])
+                P = Up if whole or Up is None else np.ascontiguousarray(Up[:, :, cols])
+                if columns is not None:
+                    self.host.set_columns({name: v[cols] for name, v in columns.items()})
+                for j in range(m + length):
+                    x = self.host.predict_t(x, U[j], self.dt_s, P[j]) if self._held else self._step(x, U[j])
+                    out[j + 1, :, cols] = x[:3]
         finally:
             if self.per_unit is not None:
                 self.host.set_columns(None)
-        traj = out.transpose(2, 0, 1).reshape(c, w, m + length + 1, 3)
-        for effect in self.sensors:
-            prm = {q.name: self.prm[f"{effect.name}.{q.name}"] for q in effect.params}
-            traj = np.stack([effect.transform(t, tl.dt_s, prm) for t in traj])
-        return traj[:, :, m:]
+            if thetas is not None:
+                self.host.set_groups(None)
+        trajs = out.transpose(2, 0, 1).reshape(groups, c, w, m + length + 1, 3)
+        result = []
+        for traj, prm in zip(trajs, prms):
+            for effect in self.sensors:
+                own = {q.name: prm[f"{effect.name}.{q.name}"] for q in effect.params}
+                traj = np.stack([effect.transform(t, tl.dt_s, own) for t in traj])
+            result.append(traj[:, :, m:])
+        return result
 
     def projected(self, tl, starts, length, fit_rows: np.ndarray, passes: int = 1, u_eff=None,
                   held: Solve | None = None):
@@ -256,13 +337,12 @@ class JointModel:
         Returns:
             (pred (w, L + 1, 3) predicted measurements after the correction, the :class:`Solve`).
         """
-        target = targets(tl, starts, length)
-        use = fit_rows & np.all(np.isfinite(target), axis=2)
-        tz = np.where(use[..., None], target, 0.0)
+        target, use, tz = self._targets(tl, starts, length, fit_rows)
         m = self.lookback()
         if held is not None and held.lookback == m:
             q0 = self.trajectories(tl, starts, length, held.x0[None], u_eff)[0]
-            return _corrected(q0, held.S, use, tz, held.G)[0], held
+            Su = held.Su if held.use is not None and np.array_equal(held.use, use) else None
+            return _corrected(q0, held.S, use, tz, held.G, Su)[0], held
         x0 = tl.x_lin[np.maximum(starts - m, tl.segment_start[starts])]  # the guess where the rollouts start
         xs = np.stack([x0] + [x0 + DV * np.eye(6)[3 + a] for a in range(3)])
         q = self.trajectories(tl, starts, length, xs, u_eff)
@@ -270,12 +350,12 @@ class JointModel:
         S[..., :3] = np.eye(3)
         S[..., 3:] = ((q[1:] - q[0]) / DV).transpose(1, 2, 3, 0)
         S = np.where(np.isfinite(S), S, 0.0)
-        pred, d, G = _corrected(q[0], S, use, tz)
-        solve = Solve(x0, S, G, m)
+        pred, d, G, Su = _corrected(q[0], S, use, tz)
+        solve = Solve(x0, S, G, m, use, Su)
         for _ in range(passes - 1):  # further passes from the corrected state, the sensitivity held
             solve = replace(solve, x0=solve.x0 + d)
             q0 = self.trajectories(tl, starts, length, solve.x0[None], u_eff)[0]
-            pred, d, _ = _corrected(q0, S, use, tz, G)
+            pred, d, _, _ = _corrected(q0, S, use, tz, G, Su)
         return pred, solve
 
     # ------------------------------------------------------------ evaluation
@@ -296,37 +376,54 @@ class JointModel:
 
     def open_loop(self, tl, starts, lead, steps, passes: int = 2, held: Solve | None = None):
         """(:meth:`evaluate`'s errors, the initial-state :class:`Solve`), the solve held from ``held`` if given."""
-        length = lead + max(steps.values())
+        valid, err, solve = self.open_loop_errors(tl, starts, lead, tuple(steps.values()), passes, held)
+        return {key: {"valid": valid[:, h].copy(), "err": err[:, h].copy()} for h, key in enumerate(steps)}, solve
+
+    def open_loop_errors(self, tl, starts, lead, ks, passes: int = 2, held: Solve | None = None):
+        """(valid (w, H) bool, err (w, H, 3) predicted - measured [mm], the :class:`Solve`): :meth:`open_loop`'s
+        errors ``ks`` (H,) steps after the lead-in, as arrays (NaN where not valid)."""
+        ks = np.asarray(ks, dtype=np.int64)
+        length = lead + int(ks.max())
         fit_rows = np.zeros((len(starts), length + 1), dtype=bool)
         fit_rows[:, : lead + 1] = True
         with np.errstate(all="ignore"):  # a model that diverges shows as a huge error, not a warning
             pred, solve = self.projected(tl, starts, length, fit_rows, passes=passes, held=held)
-        target = targets(tl, starts, length)
-        out = {}
-        for key, k in steps.items():
-            row = lead + k
-            valid = (tl.run[starts] >= row) & np.all(np.isfinite(target[:, row]), axis=1)
-            err = np.where(valid[:, None], pred[:, row] - np.nan_to_num(target[:, row]), np.nan)
-            with np.errstate(all="ignore"):
-                diverged = valid & ~(np.linalg.norm(err, axis=1) <= DIVERGED_MM)  # NaN too
-            err[diverged] = DIVERGED_MM / math.sqrt(3.0)
-            out[key] = {"valid": valid, "err": err}
-        return out, solve
+        rows = lead + ks
+        target = self._targets(tl, starts, length, fit_rows)[0][:, rows]  # (w, H, 3)
+        valid = (tl.run[starts][:, None] >= rows[None, :]) & np.all(np.isfinite(target), axis=2)
+        err = np.where(valid[..., None], pred[:, rows] - np.nan_to_num(target), np.nan)
+        with np.errstate(all="ignore"):
+            diverged = valid & ~(np.linalg.norm(err, axis=2) <= DIVERGED_MM)  # NaN too
+        err[diverged] = DIVERGED_MM / math.sqrt(3.0)
+        return valid, err, solve
+
+    def _targets(self, tl, starts, length, fit_rows):
+        """(:func:`targets` (w, L + 1, 3), the rows that fit the initial state: ``fit_rows`` and measured (w, L + 1),
+        the targets there and 0 elsewhere), remembered for the last windows (a Jacobian's columns reuse them)."""
+        last = self._fitted_rows
+        if not (last is not None and last[0] is tl and last[7] is tl.p and last[2] == length
+                and (last[1] is starts or np.array_equal(last[1], starts)) and np.array_equal(last[3], fit_rows)):
+            target = targets(tl, starts, length)
+            use = fit_rows & np.all(np.isfinite(target), axis=2)
+            last = (tl, starts, length, fit_rows, target, use, np.where(use[..., None], target, 0.0), tl.p)
+            self._fitted_rows = last
+        return last[4:7]
 
 
-def _corrected(q0, S, use, tz, G=None):
-    """(q0 corrected by the Gauss-Newton step of the initial state (w, L + 1, 3), the step d (w, 6), G): the
+def _corrected(q0, S, use, tz, G=None, Su=None):
+    """(q0 corrected by the Gauss-Newton step of the initial state (w, L + 1, 3), the step d (w, 6), G, Su): the
     step fits the rows ``use`` (w, L + 1) of the targets ``tz`` (0 elsewhere) with the sensitivity S and its
-    normal matrix G (w, 6, 6; made here when not given)."""
+    normal matrix G (w, 6, 6), S on the rows used Su (w, 3 (L + 1), 6) (each made here when not given)."""
     w, rows = use.shape
     q0 = np.where(np.isfinite(q0), q0, 0.0)
     r = np.where(use[..., None], q0 - tz, 0.0)
-    Su = (S * use[..., None, None]).reshape(w, rows * 3, 6)  # batched matmul: BLAS, not einsum loops
+    if Su is None:
+        Su = (S * use[..., None, None]).reshape(w, rows * 3, 6)  # batched matmul: BLAS, not einsum loops
     SuT = Su.transpose(0, 2, 1)
     if G is None:
         G = SuT @ Su + RIDGE
     d = np.linalg.solve(G, -(SuT @ r.reshape(w, rows * 3, 1)))[..., 0]
-    return q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape), d, G
+    return q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape), d, G, Su
 
 
 class HeldJacobian:
@@ -351,8 +448,11 @@ class HeldJacobian:
         self.theta = np.array(theta, dtype=float)
         return self.r
 
-    def jac(self, theta: np.ndarray, cols=None) -> np.ndarray:
-        """(N, len(cols)) derivatives of the residuals by the parameters ``cols`` (default: all)."""
+    def jac(self, theta: np.ndarray, cols=None, batched: bool = True) -> np.ndarray:
+        """(N, len(cols)) derivatives of the residuals by the parameters ``cols`` (default: all).
+
+        ``batched``: the columns' rollouts share batches where the model allows (:meth:`JointModel.batchable`;
+        the same numbers as one rollout per column), else one rollout per column."""
         theta = np.asarray(theta, dtype=float)
         if self.theta is None or not np.array_equal(theta, self.theta):
             self(theta)
@@ -361,15 +461,62 @@ class HeldJacobian:
         _, hi = self.jm.bounds()
         scale = self.jm.scales()
         J = np.empty((len(r0), len(cols)))
-        for n, j in enumerate(cols):
+        steps, thetas = [], []
+        for j in cols:
             th = theta.copy()
             h = self.step * scale[j] if self.step is not None else self.STEP * max(abs(th[j]), scale[j])
             h = -h if th[j] + h > hi[j] else h
             th[j] += h
-            self.jm._set(th)
-            J[:, n] = (self.fn(solve)[0] - r0) / h
-        self.jm._set(theta)
+            steps.append(h)
+            thetas.append(th)
+        if batched and len(cols) > 1 and self.jm.batchable():
+            self.jm._variants = _Variants(np.array(thetas))
+        try:
+            for n, (th, h) in enumerate(zip(thetas, steps)):
+                self.jm._set(th)
+                J[:, n] = (self.fn(solve)[0] - r0) / h
+        finally:
+            self.jm._variants = None
+            self.jm._set(theta)
         return J
+
+
+class _Variants:
+    """The parameter vectors (G, P) of a Jacobian's columns, rolled out together: the first single rollout a
+    column asks for (:meth:`JointModel.trajectories`) is made for it and the columns after it with the same
+    lookback, up to :data:`MAX_BATCH_COLUMNS` batch columns, and each later column takes its own. A request
+    for other windows or initial states than the first one's is not served (the caller rolls it out alone)."""
+
+    def __init__(self, thetas: np.ndarray):
+        self.thetas = thetas
+        self.request = None  # (timeline, starts, length, x0, u_eff) the rollouts are of
+        self.ready: dict = {}  # column -> its rollout (1, w, L + 1, 3), until taken
+        self.made: set = set()  # columns rolled out
+
+    def take(self, jm: JointModel, tl, starts, length, x0, u_eff):
+        """The rollout of ``jm``'s current parameter vector, or None when it is not one of the columns' or the
+        request is not the first one's."""
+        hit = np.flatnonzero(np.all(self.thetas == jm.theta, axis=1))
+        if not len(hit):
+            return None
+        i = int(hit[0])
+        if self.request is None:
+            self.request = (tl, starts, length, x0, u_eff)
+        else:
+            tl0, starts0, length0, x00, u0 = self.request
+            if not (tl0 is tl and length0 == length and u0 is u_eff
+                    and (starts0 is starts or np.array_equal(starts0, starts)) and np.array_equal(x00, x0)):
+                return None
+        if i not in self.ready:
+            if i in self.made:  # asked for twice
+                return None
+            m = jm.lookback()
+            width = max(1, MAX_BATCH_COLUMNS // max(len(starts), 1))
+            chunk = [j for j in range(i, len(self.thetas))
+                     if j not in self.made and jm.lookback(dict(zip(jm.names, self.thetas[j]))) == m][:width]
+            self.ready.update(zip(chunk, jm.rollouts(tl, starts, length, x0, u_eff, self.thetas[chunk])))
+            self.made.update(chunk)
+        return self.ready.pop(i)
 
 
 def targets(tl, starts: np.ndarray, length: int) -> np.ndarray:

@@ -79,19 +79,23 @@ def geometry(p, v, u, pb_norm_mm: float):
     return sin_a, lift.T, cent.T
 
 
+_sum3 = np.add.reduce  # _sum3(a * b, 0): the component sums of (3, n) arrays, a[0] b[0] + a[1] b[1] + a[2] b[2]
+
+
 def _geometry_t(p, v, u, pb):
-    """:func:`geometry` on component-major arrays (3, n) (faster: contiguous rows)."""
-    vn = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    wn = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    """:func:`geometry` on component-major arrays (3, n) (faster: contiguous rows; few numpy calls, since the
+    rollouts step a few hundred columns at a time)."""
+    vn = np.sqrt(_sum3(v * v, 0))
+    wn = np.sqrt(_sum3(u * u, 0))
     den = vn * wn
     ok = den > 1e-12
-    cos = np.where(ok, (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / np.where(ok, den, 1.0), 1.0)
-    np.clip(cos, -1.0, 1.0, out=cos)
+    cos = np.where(ok, _sum3(u * v, 0) / np.where(ok, den, 1.0), 1.0)
+    np.minimum(np.maximum(cos, -1.0, out=cos), 1.0, out=cos)
     sin_a = np.sqrt(1.0 - cos * cos)
     # sin(2a) |v| v_perp = 2 cos (|v| w_hat - cos v): no division by sin(a)
     c2 = 2.0 * cos * ok
     lift = (c2 * vn / np.where(wn > 1e-12, wn, 1.0)) * u - (c2 * cos) * v
-    pn = np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+    pn = np.sqrt(_sum3(p * p, 0))
     cent = p * (-np.sin((np.pi / pb) * pn) / np.where(pn > 1e-12, pn, 1.0))
     return sin_a, lift, cent
 
@@ -141,6 +145,7 @@ class PhysicalModel(Model):
         self._scale = 1000.0 / mass_mg
         self._theta = np.array([p.init for p in self.all_params()])
         self._columns: dict | None = None  # see set_columns
+        self._groups: _Groups | None = None  # see set_groups
         self.fit_info: dict = {}
 
     @classmethod
@@ -204,7 +209,30 @@ class PhysicalModel(Model):
         unknown = set(columns) - set(BASE_NAMES)
         if unknown:
             raise ValueError(f"only base parameters can differ per column, not {sorted(unknown)}")
+        if self._groups is not None:
+            raise ValueError("set_columns: parameters per group of columns are set (set_groups); clear them first")
         self._columns = {BASE_NAMES.index(n): np.asarray(v, dtype=float) for n, v in columns.items()}
+
+    def set_groups(self, thetas: np.ndarray | None, width: int = 0) -> None:
+        """Every parameter differing per group of batch columns in :meth:`predict_t`, None to share them again.
+
+        ``thetas`` (G, P): the values of :meth:`all_params` (extra terms' included) for G groups of ``width``
+        consecutive columns each, a batch of G * width columns (e.g. the perturbed parameter vectors of a
+        Jacobian's columns, rolled out at once). Each group steps with the same arithmetic as a model with its
+        own parameters (the same results, column by column); an extra term is called once per set of groups
+        that agree on the parameters it reads, on that set's columns, always with scalar parameters
+        (:class:`_TermGroups`).
+        """
+        if thetas is None:
+            self._groups = None
+            return
+        if self._columns is not None:
+            raise ValueError("set_groups: base parameters per column are set (set_columns); clear them first")
+        thetas = np.asarray(thetas, dtype=float)
+        if thetas.ndim != 2 or thetas.shape[1] != self.n_params or width < 1:
+            raise ValueError(f"set_groups: thetas must be (groups, {self.n_params}) and width >= 1, "
+                             f"not {thetas.shape} and {width}")
+        self._groups = _Groups(thetas, int(width), self._param_names(), self.terms)
 
     @property
     def n_params(self) -> int:
@@ -234,61 +262,74 @@ class PhysicalModel(Model):
         ``ut_prev`` (3, n): the previous step's commands, which ``hold="exact"`` uses (default: ``ut``).
         """
         n, h = self.options["substeps"], dt_s / self.options["substeps"]
-        th = self._theta
-        if self._columns is not None:
+        th, groups = self._theta, self._groups
+        if groups is not None:
+            if xt.shape[1] != groups.columns:
+                raise ValueError(f"predict_t: a batch of {xt.shape[1]} columns, but set_groups made "
+                                 f"{groups.columns}")
+            th = groups.th
+        elif self._columns is not None:
             th = list(th)
             for i, values in self._columns.items():
                 th[i] = values
         for i in range(n):
-            xt = self._step_t(xt, ut, h, th, ut_prev if i == 0 else None)
+            xt = self._step_t(xt, ut, h, th, ut_prev if i == 0 else None, groups)
         return xt
 
-    def _step_t(self, x, u, h, th, u_prev=None):
-        """One step of h [s] on component-major arrays: x (6, n), u and u_prev (3, n) -> (6, n)."""
+    def _step_t(self, x, u, h, th, u_prev=None, groups=None):
+        """One step of h [s] on component-major arrays: x (6, n), u and u_prev (3, n) -> (6, n); ``groups``: the
+        :class:`_Groups` of :meth:`set_groups` (``th`` is then theirs)."""
         p, v = x[:3], x[3:]
         s = self._scale
         f, v_geo = u, v  # the command whose force acts, the velocity the geometry is taken at
         if self._exact:  # see the module doc
-            if np.ndim(th[2]):  # a drag per column (set_columns)
+            if groups is not None:
+                f1, w, decay = groups.hold(s, h)
+            elif np.ndim(th[2]):  # a drag per column (set_columns)
                 z1 = s * h * np.maximum(th[2], 0.0)
                 f1 = phi1(z1)
                 w = np.where(z1 > 1e-6, (1.0 - f1) / (np.maximum(z1, 1e-300) * f1), 0.5 + z1 / 12.0)
                 decay = np.exp(-z1)
             else:
-                z1 = s * h * max(float(th[2]), 0.0)
-                f1 = -math.expm1(-z1) / z1 if z1 >= 1e-6 else 1.0 - 0.5 * z1  # phi1 on a scalar
-                w = (1.0 - f1) / (z1 * f1) if z1 > 1e-6 else 0.5 + z1 / 12.0
-                decay = math.exp(-z1)
+                f1, w, decay = _hold_factors(s, h, th[2])
             if u_prev is not None:
                 f = w * u + (1.0 - w) * u_prev
             drive = th[0] * f
             drive[2] += th[4]
             v_geo = decay * v + (s * h * f1) * drive  # the step's mean velocity, drag by Cd1 alone
+        else:
+            drive = th[0] * f
+            drive[2] += th[4]
         sin_a, lift, cent = _geometry_t(p, v_geo, u, self._pb)
-        a = th[0] * f + th[3] * lift + th[5] * cent
-        a[2] += th[4]
+        a = drive  # the forces held over the step, uN per mg
+        a += th[3] * lift
+        a += th[5] * cent
         drag = th[1] * sin_a + th[2]
         if self.terms:
-            # under set_columns the terms read the shared values of the base parameters
-            named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
+            if groups is not None:
+                calls = [g.force for g in groups.terms]
+            else:  # under set_columns the terms read the shared values of the base parameters
+                named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
+                calls = [_one_call(_term_params(term, named)) for term in self.terms]
             slowing = 0.0
-            for term, moving in zip(self.terms, self._velocity_terms()):
-                prm = _term_params(term, named)
-                ft = term.force(p.T, v_geo.T, f.T, prm).T
+            for term, moving, call in zip(self.terms, self._velocity_terms(), calls):
+                ft = call(term, p, v_geo, f)
                 a += ft
                 if moving:  # the part of its force that grows with the velocity, along it
-                    ft = ft - term.force(p.T, np.zeros_like(v_geo.T), f.T, prm).T
-                    slowing = slowing - (ft * v_geo).sum(0)
+                    ft = ft - call(term, p, np.zeros_like(v_geo), f)
+                    slowing = slowing - _sum3(ft * v_geo, 0)
             # a drag among the terms joins the exact decay (a stiff quadratic drag cannot blow up): rate
             # lambda_e = -(F(v) - F(0)) . v / |v|^2 >= 0, and lambda_e v is given back to the held forces
-            extra = np.maximum(slowing, 0.0) / np.maximum((v_geo * v_geo).sum(0), 1e-12)
-            drag = drag + extra
+            extra = np.maximum(slowing, 0.0) / np.maximum(_sum3(v_geo * v_geo, 0), 1e-12)
+            drag += extra
             a += extra * v_geo
-        z = (s * h) * drag + 1e-300  # exp(-z) = 1 + em and phi1(z) = -em / z, with em = expm1(-z) (z != 0)
+        z = (s * h) * drag
+        z += 1e-300  # exp(-z) = 1 + em and phi1(z) = -em / z, with em = expm1(-z) (z != 0)
         em = np.expm1(-z)
         out = np.empty_like(x)
-        out[3:] = (1.0 + em) * v - ((s * h) * em / z) * a
-        out[:3] = p + h * out[3:]
+        np.subtract((1.0 + em) * v, ((s * h) * em / z) * a, out=out[3:])
+        np.multiply(out[3:], h, out=out[:3])
+        out[:3] += p
         return out
 
     # ------------------------------------------------------------ fitting
@@ -471,6 +512,147 @@ class PhysicalModel(Model):
                                          meta.get("effect_terms", {}))
         self._theta = np.asarray(arrays["theta"], dtype=float)
         self.fit_info = meta.get("fit_info", {})
+
+
+def _hold_factors(s: float, h: float, cd1) -> tuple[float, float, float]:
+    """``hold="exact"``'s factors of a step of h [s] with drag Cd1 (scalars): (phi1(z), the command's weight
+    phi2(z) / phi1(z), exp(-z)) with z = s h Cd1, s = 1000 / m."""
+    z1 = s * h * max(float(cd1), 0.0)
+    f1 = -math.expm1(-z1) / z1 if z1 >= 1e-6 else 1.0 - 0.5 * z1  # phi1 on a scalar
+    w = (1.0 - f1) / (z1 * f1) if z1 > 1e-6 else 0.5 + z1 / 12.0
+    return f1, w, math.exp(-z1)
+
+
+def _one_call(prm: dict):
+    """A term's force on component-major p, v, u (3, n) with the parameters ``prm``: (3, n) [uN]."""
+    return lambda term, p, v, u: term.force(p.T, v.T, u.T, prm).T
+
+
+class _Reads(dict):
+    """A term's parameters that remember the names the term reads (``everything``: it listed or copied them)."""
+
+    def __init__(self, prm: dict):
+        super().__init__(prm)
+        self.names: set = set()
+        self.everything = False
+
+    def __getitem__(self, name):
+        self.names.add(name)
+        return super().__getitem__(name)
+
+    def get(self, name, default=None):
+        self.names.add(name)
+        return super().get(name, default)
+
+    def __contains__(self, name):
+        self.names.add(name)
+        return super().__contains__(name)
+
+
+def _reads_everything(name: str):
+    base = getattr(dict, name)
+
+    def method(self, *args, **kwargs):
+        self.everything = True
+        return base(self, *args, **kwargs)
+
+    return method
+
+
+for _name in ("__iter__", "__len__", "__eq__", "__ne__", "__or__", "__ror__", "__repr__", "__reduce_ex__",
+              "__reversed__", "keys", "items", "values", "copy", "pop", "popitem", "setdefault"):
+    setattr(_Reads, _name, _reads_everything(_name))
+
+_MISSING = object()
+
+
+class _TermGroups:
+    """One extra term's parameters per group of batch columns (``prms``, G dicts; ``width`` columns a group).
+
+    :meth:`force` calls the term once per set of groups that agree on every parameter it reads (each call's
+    parameters are a group's own scalars, on that set's columns laid out as a batch of its own), so a term
+    that does not read a column's perturbed parameter runs once for all those columns. The names it reads
+    are learnt from its calls (the first step calls it once per distinct parameter set) and every call is
+    checked: one that reads another name is redone with the groups split by it too.
+    """
+
+    def __init__(self, prms: list, width: int):
+        self.prms, self.width = prms, width
+        self.reads: set | bool | None = None  # the names the term reads; None: not known yet; True: all
+        self._parts: dict = {}
+
+    def _partition(self) -> list:
+        """[(columns: None for all, a slice or an index array; the parameters of the set's first group)]."""
+        key = self.reads if self.reads is None or self.reads is True else frozenset(self.reads)
+        if key not in self._parts:
+            sets: dict = {}
+            for g, prm in enumerate(self.prms):
+                sig = tuple(prm.items()) if key is None or key is True else \
+                    tuple(prm.get(n, _MISSING) for n in sorted(key))
+                sets.setdefault(sig, []).append(g)
+            parts = []
+            for members in sets.values():
+                w = self.width
+                if len(members) == len(self.prms):
+                    cols = None
+                elif members[-1] - members[0] == len(members) - 1:
+                    cols = slice(members[0] * w, (members[-1] + 1) * w)
+                else:
+                    cols = np.concatenate([np.arange(g * w, (g + 1) * w) for g in members])
+                parts.append((cols, self.prms[members[0]]))
+            self._parts[key] = parts
+        return self._parts[key]
+
+    def force(self, term, p, v, u) -> np.ndarray:
+        """(3, n) the term's force [uN] on component-major p, v, u (3, n) of every group's columns."""
+        while True:
+            known = self.reads
+            out, seen, everything, redo = None, set(), False, False
+            for cols, prm in self._partition():
+                arg = prm if known is True else _Reads(prm)
+                if cols is None:
+                    f = term.force(p.T, v.T, u.T, arg).T
+                else:
+                    f = term.force(*(np.ascontiguousarray(a[:, cols]).T for a in (p, v, u)), arg).T
+                if known is not True:
+                    everything |= arg.everything
+                    seen |= arg.names
+                    if known is not None and (arg.everything or not arg.names <= known):
+                        redo = True  # merged on names that do not decide this call: split by the new ones too
+                        break
+                if cols is None:
+                    out = f
+                else:
+                    if out is None:
+                        out = np.empty_like(p)
+                    out[:, cols] = f
+            if known is not True:
+                self.reads = True if everything else seen | (known or set())
+            if not redo:
+                return out
+
+
+class _Groups:
+    """The per-group parameters of :meth:`PhysicalModel.set_groups`: ``th`` the six base parameters (a scalar
+    where every group has the same value, else (G * width,) per column), ``terms`` a :class:`_TermGroups` per
+    extra term, ``columns`` G * width."""
+
+    def __init__(self, thetas: np.ndarray, width: int, names: tuple, terms):
+        self.thetas, self.width, self.columns = thetas, width, len(thetas) * width
+        self.th = [self._per_column(thetas[:, i]) for i in range(len(BASE_NAMES))]
+        named = [dict(zip(names, row)) for row in thetas]
+        self.terms = [_TermGroups([_term_params(term, nm) for nm in named], width) for term in terms]
+        self._hold: dict = {}
+
+    def _per_column(self, values: np.ndarray):
+        return values[0] if np.all(values == values[0]) else np.repeat(values, self.width)
+
+    def hold(self, s: float, h: float):
+        """:func:`_hold_factors` of each group's Cd1, per column (scalars when the groups share Cd1)."""
+        if h not in self._hold:
+            factors = np.array([_hold_factors(s, h, cd1) for cd1 in self.thetas[:, 2]])
+            self._hold[h] = tuple(self._per_column(factors[:, k]) for k in range(3))
+        return self._hold[h]
 
 
 def _step_scalar(x, u, h, th, s, pb):
