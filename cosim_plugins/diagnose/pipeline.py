@@ -340,7 +340,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
         return fit.fitted, fit.summary, fit.ev
 
     test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
-    found = discover(reference, ttr, tte, train, test, refit, say)
+    found = discover(reference, ttr, tte, train, test, refit, say, jobs=s.jobs)
     if found["status"] != "found":
         return found, None
     summ, ev = found.pop("summary"), found.pop("ev")
