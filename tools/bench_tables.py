@@ -376,6 +376,31 @@ def blind_table() -> str:
     return table(["figure", "seed 3 (new)", "seed 2", "target"], rows)
 
 
+# ---------------------------------------------------------------- the long-runs page
+
+
+def soak_table(names: tuple[str, ...]) -> Callable[[], str]:
+    """docs/long-runs.md: the soak runs kept in the data files ``names`` (in order), one row a run: hours,
+    layout, wall time, peak memory (the scheduler's and the largest node's with ``--processes``), files, speed."""
+    def render() -> str:
+        rows = []
+        for name in names:
+            for r in load(name)["output"]["runs"]:
+                processes = r["layout"] == "processes"
+                peak = f"{r['peak_mb']:.1f}" + (f" (scheduler); largest node {r['nodes_peak_mb']:.1f}"
+                                                if processes and r.get("nodes_peak_mb") else "")
+                rows.append([f"{r['hours']:g}", "`--processes`" if processes else "one process", f"{r['wall_s']:.1f}",
+                             peak, f"{r['files_mb']:.1f}", f"{r['realtime_factor']:.1f}x"])
+        return table(["hours", "layout", "wall [s]", "peak memory [MB]", "files [MB]", "real-time factor"], rows)
+    return render
+
+
+#: The soak runs of the long-runs page's two tables: ``soak.py --hours 1 12`` (one process, then its
+#: ``--processes`` hour), and ``soak.py --no-one-process --processes-hours 1 12``.
+SOAK_TABLES = {"soak-hours-1-12": ("soak_one_process", "soak_processes_first"),
+               "soak-processes-12h": ("soak_processes",)}
+
+
 #: Every table a page may mark, by name: what renders it (from the data files it loads).
 TABLES: dict[str, Callable[[], str]] = {
     "benchmarks": benchmarks_table,
@@ -384,6 +409,7 @@ TABLES: dict[str, Callable[[], str]] = {
     "diagnose-several-effects-bench": several_effects_table,
     "diagnose-hidden-effects": hidden_effects_table,
     "diagnose-blind-bench": blind_table,
+    **{name: soak_table(files) for name, files in SOAK_TABLES.items()},
 }
 
 

@@ -61,6 +61,10 @@ class Block:
     #: blocks made in the same folder as this one, first (their commands, not shown)
     after: str | None = None
     extra_env: dict = field(default_factory=dict)
+    #: the exit statuses a command may end with (an error message the docs show exits non-zero)
+    exit_codes: tuple[int, ...] = (0,)
+    #: show what the shown commands print on stderr too (after their stdout)
+    stderr: bool = False
 
 
 def lines_between(first: str, last: str | None = None) -> Callable[[str], str]:
@@ -73,6 +77,43 @@ def lines_between(first: str, last: str | None = None) -> Callable[[str], str]:
     return keep
 
 
+def ranking_and_short_verdict(text: str) -> str:
+    """A diagnosis as the effects page shows it: the ranking (to its first blank line) and the verdict cut to
+    its first clause and its fitted values (``verdict: X explains the error: ... Fitted: ...``)."""
+    lines = text.splitlines()
+    i = next(i for i, line in enumerate(lines) if line.startswith("rank effect"))
+    j = next((j for j in range(i, len(lines)) if not lines[j].strip()), len(lines))
+    verdict = next(line for line in lines if line.startswith("verdict:"))
+    head = re.match(r"verdict: [^:]*:", verdict)
+    fitted = re.search(r"Fitted: .*?\.(?=\s|$)", verdict)
+    if head and fitted:
+        verdict = f"{head[0]} ... {fitted[0]}"
+    return "\n".join(lines[i:j]) + "\n\n" + verdict
+
+
+def sweep_rows(column: str, values: tuple[str, ...], drop: tuple[str, ...]) -> Callable[[str], str]:
+    """Keep a sweep's printed Markdown table with only the rows whose ``column`` is one of ``values`` and
+    without the columns ``drop``, and the lines after the table (the largest values below the threshold)."""
+    def keep(text: str) -> str:
+        lines = text.splitlines()
+        first = next(i for i, line in enumerate(lines) if line.startswith("| "))
+        end = next((j for j in range(first, len(lines)) if not lines[j].startswith("|")), len(lines))
+
+        def cells(line: str) -> list[str]:
+            return [c.strip() for c in line.strip().strip("|").split("|")]
+
+        header = cells(lines[first])
+        if column not in header:
+            raise SystemExit(f"the sweep's table has no column {column!r} (it has {', '.join(header)})")
+        cols = [k for k, name in enumerate(header) if name not in drop]
+        at = header.index(column)
+        rows = [cells(line) for line in lines[first + 2:end]]
+        kept = [header, ["---"] * len(header), *(r for r in rows if r[at] in values)]
+        table = ["| " + " | ".join(r[k] for k in cols) + " |" for r in kept]
+        return "\n".join(table + [line for line in lines[end:] if line.strip()])
+    return keep
+
+
 def diagnose_table_and_verdict(text: str) -> str:
     """A diagnosis as the walkthrough shows it: the error table, the ranking, the legend and the verdict."""
     return lines_between("held-out error [mm]", "verdict:")(text)
@@ -82,6 +123,12 @@ HIDDEN_FLOW = ("--set components.plant.params.background_flow_on=true "
                "--set components.plant.params.flow_x=0.003")
 DIAGNOSE_CODE = ("cosim_plugins.identify", "cosim_plugins.diagnose", "cosim_plugins.effects", "cosim_plugins.models",
                  "cosim_plugins.plant", "cosim_plugins/scenarios/diagnose")
+#: What the flow-KF sweep runs besides the diagnosis: the components of its loop, its scenario, the sweep's table.
+FLOW_KF_CODE = (*DIAGNOSE_CODE, "cosim_plugins.estimators", "cosim_plugins.controllers", "cosim_plugins.camera",
+                "cosim_plugins.coil_driver", "cosim_plugins.paths", "cosim/record/summary.py",
+                "cosim_plugins/scenarios/flow_kf_sweep.yaml")
+#: The sweep table's columns the effects page leaves out.
+SWEEP_DROP = ("max [mm]", "prediction x / y / z / RMSE [mm]", "solve median / p99 [ms]", "status")
 
 BLOCKS: dict[str, Block] = {
     "first-steps": Block(("cosim run racetrack --set components.camera.params.interval_s=0.1 "
@@ -99,6 +146,34 @@ BLOCKS: dict[str, Block] = {
         ("cosim diagnose runs/diag_flow/runs/*/log.csv --add background_flow --out runs/diag_flow/added",),
         keep=lines_between("held-out error [mm]", "noise floor"), slow=True, depends=DIAGNOSE_CODE,
         after="diagnose-walkthrough"),
+    "rotate": Block(("cosim run racetrack --set duration_s=120 --rotate 0.01 --out runs/rotated",)),
+    "rotate-parts": Block(
+        ("python -c 'from cosim.record.recorder import load_trace; print(load_trace(\"runs/rotated\")[\"t_s\"].shape)'",
+         "python -c 'from cosim.record.recorder import iter_trace; "
+         "print([len(p[\"t_s\"]) for p in iter_trace(\"runs/rotated\", [\"plant.position\"])])'"),
+        after="rotate"),
+    "hosts-plain-tcp": Block(
+        ("printf 'scheduler: {host: one, listen: tcp/0.0.0.0:7447}\\nhosts:\\n  one: {address: 0.0.0.0}\\n' "
+         "> hosts.yaml",
+         "cat hosts.yaml", "cosim run racetrack --processes --hosts hosts.yaml"),
+        show=(1, 2), exit_codes=(0, 2), stderr=True),
+    "dask-refused": Block(("cosim run feedback_sweep --executor dask://tls://127.0.0.1:8786",
+                           "cosim run feedback_sweep --executor dask://10.0.0.5:8786"), exit_codes=(2,), stderr=True),
+    "flow-kf-sweep": Block(
+        (f"cosim run diagnose/plain --set duration_s=40 --out runs/flow/logs --quiet {HIDDEN_FLOW}",
+         "cosim fit runs/flow/logs/runs/*/log.csv --model physical --out runs/flow/plain",
+         "cosim diagnose runs/flow/logs/runs/*/log.csv --add background_flow --save-model runs/flow/with_flow.npz "
+         "--out runs/flow/diagnosis",
+         "cosim run flow_kf_sweep --out runs/flow/sweep"),
+        show=(3,), keep=sweep_rows("interval_s", ("0.42", "1.0", "1.5", "2.0"), SWEEP_DROP), slow=True,
+        depends=FLOW_KF_CODE),
+    "diagnose-own-effect": Block(
+        ('ln -s "$DOCS_ROOT/examples" examples',
+         "cosim run diagnose/plain --out runs/diag_wall --quiet --set components.plant.params.wall_drag_on=true "
+         "--set components.plant.params.wall_drag_length=0.008 --set components.plant.params.wall_drag_gain=3",
+         "cosim diagnose runs/diag_wall/runs/*/log.csv --effects-file examples/my_effect.py "
+         "--effects wall_drag,wall_drag_exp --out runs/diag_wall/mine"),
+        show=(2,), keep=ranking_and_short_verdict, slow=True, depends=(*DIAGNOSE_CODE, "examples/my_effect.py")),
 }
 
 #: Wall-clock figures, masked when a page is compared with a fresh run.
@@ -168,9 +243,12 @@ def results_problem(page: Path = RESULTS_PAGE) -> str | None:
     return None
 
 
-def environment() -> dict[str, str]:
-    """This Python's scripts first on the PATH; no display; the package as installed."""
+def environment(extra: dict[str, str] | None = None) -> dict[str, str]:
+    """This Python's scripts first on the PATH; no display; the package as installed; ``DOCS_ROOT`` the
+    checkout (for a command that needs one of its files, without its path in the command's digest)."""
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["DOCS_ROOT"] = str(ROOT)
+    env.update(extra or {})
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     env["COLUMNS"] = "110"
     return env
@@ -185,12 +263,13 @@ def run_block(name: str, folder: Path, done: set[str] | None = None) -> str:
     shown = []
     for i, command in enumerate(block.commands):
         print(f"[{name}] $ {command}", file=sys.stderr, flush=True)
-        result = subprocess.run(["bash", "-c", command], cwd=folder, env=environment(),
+        result = subprocess.run(["bash", "-c", command], cwd=folder, env=environment(block.extra_env),
                                 capture_output=True, text=True)
-        if result.returncode != 0:
+        if result.returncode not in block.exit_codes:
             raise SystemExit(f"[{name}] `{command}` failed (exit {result.returncode}):\n{result.stderr}")
         if block.show is None or i in block.show:
-            out = block.keep(result.stdout.rstrip())
+            printed = result.stdout.rstrip() + (f"\n{result.stderr.rstrip()}" if block.stderr else "")
+            out = block.keep(printed.strip("\n"))
             shown.append(f"$ {command}\n{out}")
     done.add(name)
     return "```text\n" + "\n\n".join(shown).replace(str(ROOT), ".") + "\n```\n"
