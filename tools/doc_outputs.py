@@ -114,6 +114,13 @@ def sweep_rows(column: str, values: tuple[str, ...], drop: tuple[str, ...]) -> C
     return keep
 
 
+def without_progress(text: str) -> str:
+    """The output without the progress bar's redrawn lines (``1530step [00:02, ...]``, ended by carriage
+    returns) and the blanks that clear it."""
+    pieces = (piece for line in text.splitlines() for piece in line.split("\r"))
+    return "\n".join(p for p in pieces if p.strip() and not re.match(r"\s*\d+step \[", p))
+
+
 def diagnose_table_and_verdict(text: str) -> str:
     """A diagnosis as the walkthrough shows it: the error table, the ranking, the legend and the verdict."""
     return lines_between("held-out error [mm]", "verdict:")(text)
@@ -146,6 +153,9 @@ BLOCKS: dict[str, Block] = {
         ("cosim diagnose runs/diag_flow/runs/*/log.csv --add background_flow --out runs/diag_flow/added",),
         keep=lines_between("held-out error [mm]", "noise floor"), slow=True, depends=DIAGNOSE_CODE,
         after="diagnose-walkthrough"),
+    "until-stopped": Block(("timeout -s INT 20 cosim run racetrack --until-stopped --out runs/rig",),
+                           keep=without_progress, exit_codes=(124,), stderr=True, slow=True,
+                           depends=("cosim/runtime", "cosim/cli", "cosim_plugins/scenarios/racetrack.yaml")),
     "rotate": Block(("cosim run racetrack --set duration_s=120 --rotate 0.01 --out runs/rotated",)),
     "rotate-parts": Block(
         ("python -c 'from cosim.record.recorder import load_trace; print(load_trace(\"runs/rotated\")[\"t_s\"].shape)'",
