@@ -54,7 +54,8 @@ class Block:
 
     commands: tuple[str, ...]
     show: tuple[int, ...] | None = None
-    keep: Callable[[str], str] = lambda text: text
+    #: one trim for every shown command, or a tuple of them: one a shown command, in order
+    keep: Callable[[str], str] | tuple[Callable[[str], str], ...] = lambda text: text
     #: slow blocks are not re-run by the test; the code they depend on is (modules and files, by digest)
     slow: bool = False
     depends: tuple[str, ...] = ()
@@ -92,25 +93,26 @@ def ranking_and_short_verdict(text: str) -> str:
 
 
 def sweep_rows(column: str, values: tuple[str, ...], drop: tuple[str, ...]) -> Callable[[str], str]:
-    """Keep a sweep's printed Markdown table with only the rows whose ``column`` is one of ``values`` and
-    without the columns ``drop``, and the lines after the table (the largest values below the threshold)."""
+    """Keep a sweep's printed Markdown table (the last one with a ``column``: its runs may print tables of their
+    own before it) with only the rows whose ``column`` is one of ``values`` and without the columns ``drop``, and
+    the lines after it saying the largest values below the threshold."""
+    def cells(line: str) -> list[str]:
+        return [c.strip() for c in line.strip().strip("|").split("|")]
+
     def keep(text: str) -> str:
         lines = text.splitlines()
-        first = next(i for i, line in enumerate(lines) if line.startswith("| "))
+        heads = [i for i, line in enumerate(lines) if line.startswith("| ") and column in cells(line)]
+        if not heads:
+            raise SystemExit(f"the sweep printed no table with a column {column!r}:\n{text[-3000:]}")
+        first = heads[-1]
         end = next((j for j in range(first, len(lines)) if not lines[j].startswith("|")), len(lines))
-
-        def cells(line: str) -> list[str]:
-            return [c.strip() for c in line.strip().strip("|").split("|")]
-
         header = cells(lines[first])
-        if column not in header:
-            raise SystemExit(f"the sweep's table has no column {column!r} (it has {', '.join(header)})")
         cols = [k for k, name in enumerate(header) if name not in drop]
         at = header.index(column)
         rows = [cells(line) for line in lines[first + 2:end]]
         kept = [header, ["---"] * len(header), *(r for r in rows if r[at] in values)]
         table = ["| " + " | ".join(r[k] for k in cols) + " |" for r in kept]
-        return "\n".join(table + [line for line in lines[end:] if line.strip()])
+        return "\n".join([*table, "", *(line for line in lines[end:] if line.startswith("largest "))])
     return keep
 
 
@@ -119,6 +121,30 @@ def without_progress(text: str) -> str:
     returns) and the blanks that clear it."""
     pieces = (piece for line in text.splitlines() for piece in line.split("\r"))
     return "\n".join(p for p in pieces if p.strip() and not re.match(r"\s*\d+step \[", p))
+
+
+def lines_starting(*starts: str) -> Callable[[str], str]:
+    """Keep only the output's lines that start with one of ``starts``."""
+    return lambda text: "\n".join(line for line in text.splitlines() if line.startswith(starts))
+
+
+def verdict_to_first_clue(text: str) -> str:
+    """A diagnosis's verdict line, cut after its first clue (``... Clues: WHERE: ...; ...``)."""
+    verdict = next(line for line in text.splitlines() if line.startswith("verdict:"))
+    at = verdict.find("Clues: ")
+    end = verdict.find("; ", at) if at >= 0 else -1
+    return verdict[:end] + "; ..." if end >= 0 else verdict
+
+
+def table_from(heading: str) -> Callable[[str], str]:
+    """Keep the output from the line holding ``heading`` to the line before the next blank or ``wrote`` one."""
+    def keep(text: str) -> str:
+        lines = text.splitlines()
+        i = next(i for i, line in enumerate(lines) if heading in line)
+        j = next((j for j in range(i + 1, len(lines)) if not lines[j].strip() or lines[j].startswith("wrote")),
+                 len(lines))
+        return "\n".join(lines[i:j])
+    return keep
 
 
 def diagnose_table_and_verdict(text: str) -> str:
@@ -169,6 +195,22 @@ BLOCKS: dict[str, Block] = {
         show=(1, 2), exit_codes=(0, 2), stderr=True),
     "dask-refused": Block(("cosim run feedback_sweep --executor dask://tls://127.0.0.1:8786",
                            "cosim run feedback_sweep --executor dask://10.0.0.5:8786"), exit_codes=(2,), stderr=True),
+    "lab-logs": Block(
+        ('ln -s "$DOCS_ROOT/examples" examples',
+         "cosim run diagnose/plain --out runs/lab/rig --quiet",
+         "for case in helix wide vertical tilted; do\n"
+         "  python examples/lab_recording.py runs/lab/rig/runs/*_case=$case --out runs/lab/recordings/$case\n"
+         "  cosim convert --commands runs/lab/recordings/$case/commands.csv \\\n"
+         "      --positions runs/lab/recordings/$case/detections.csv --out runs/lab/logs/$case.csv\n"
+         "done",
+         "cosim fit runs/lab/logs/{helix,wide,vertical}.csv --model physical,sindy-linear --out runs/lab/models",
+         "cosim compare runs/lab/logs/tilted.csv --models runs/lab/models --split test \\\n"
+         "    --json runs/lab/compare.json --plots runs/lab/plots",
+         "cosim diagnose runs/lab/logs/*.csv --out runs/lab/diagnosis"),
+        show=(2, 3, 4, 5),
+        keep=(lines_starting("wrote runs/lab/logs/"), lines_between("model ", "physical"),
+              table_from("one-step error"), verdict_to_first_clue),
+        slow=True, depends=(*DIAGNOSE_CODE, "examples/lab_recording.py", "cosim_plugins/raw_log.py")),
     "flow-kf-sweep": Block(
         (f"cosim run diagnose/plain --set duration_s=40 --out runs/flow/logs --quiet {HIDDEN_FLOW}",
          "cosim fit runs/flow/logs/runs/*/log.csv --model physical --out runs/flow/plain",
@@ -279,7 +321,8 @@ def run_block(name: str, folder: Path, done: set[str] | None = None) -> str:
             raise SystemExit(f"[{name}] `{command}` failed (exit {result.returncode}):\n{result.stderr}")
         if block.show is None or i in block.show:
             printed = result.stdout.rstrip() + (f"\n{result.stderr.rstrip()}" if block.stderr else "")
-            out = block.keep(printed.strip("\n"))
+            keep = block.keep[len(shown)] if isinstance(block.keep, tuple) else block.keep
+            out = keep(printed.strip("\n"))
             shown.append(f"$ {command}\n{out}")
     done.add(name)
     return "```text\n" + "\n\n".join(shown).replace(str(ROOT), ".") + "\n```\n"
