@@ -116,6 +116,25 @@ def sweep_rows(column: str, values: tuple[str, ...], drop: tuple[str, ...]) -> C
     return keep
 
 
+def pooled_columns(keep_columns: tuple[str, ...]) -> Callable[[str], str]:
+    """Keep a sweep's table pooled over its seeds (after ``Pooled over the seeds:``) with only ``keep_columns``."""
+    def keep(text: str) -> str:
+        lines = text.splitlines()
+        at = next((i for i, line in enumerate(lines) if line.startswith("Pooled over the seeds")), None)
+        if at is None:
+            raise SystemExit(f"the sweep printed no table pooled over its seeds:\n{text[-3000:]}")
+        first = next(i for i in range(at, len(lines)) if lines[i].startswith("|"))
+        end = next((j for j in range(first, len(lines)) if not lines[j].startswith("|")), len(lines))
+        rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines[first:end]]
+        missing = [c for c in keep_columns if c not in rows[0]]
+        if missing:
+            raise SystemExit(f"the pooled table has no column {', '.join(missing)} (it has {', '.join(rows[0])})")
+        cols = [rows[0].index(c) for c in keep_columns]
+        rows[1] = ["---"] * len(rows[0])
+        return "\n".join("| " + " | ".join(r[k] for k in cols) + " |" for r in rows)
+    return keep
+
+
 def without_progress(text: str) -> str:
     """The output without the progress bar's redrawn lines (``1530step [00:02, ...]``, ended by carriage
     returns) and the blanks that clear it."""
@@ -211,6 +230,12 @@ BLOCKS: dict[str, Block] = {
         keep=(lines_starting("wrote runs/lab/logs/"), lines_between("model ", "physical"),
               table_from("one-step error"), verdict_to_first_clue),
         slow=True, depends=(*DIAGNOSE_CODE, "examples/lab_recording.py", "cosim_plugins/raw_log.py")),
+    "lab-sensitivity": Block(
+        ("cosim run lab_sensitivity --jobs 2 --out runs/lab_sensitivity",),
+        keep=pooled_columns(("change", "mean error [mm]", "min / max of the seeds' means [mm]")), slow=True,
+        depends=("cosim_plugins.profiles", "cosim_plugins.camera", "cosim_plugins.controllers",
+                 "cosim_plugins.estimators", "cosim_plugins.coil_driver", "cosim_plugins.plant", "cosim_plugins.paths",
+                 "cosim/record/summary.py", "cosim_plugins/scenarios/lab_sensitivity.yaml")),
     "flow-kf-sweep": Block(
         (f"cosim run diagnose/plain --set duration_s=40 --out runs/flow/logs --quiet {HIDDEN_FLOW}",
          "cosim fit runs/flow/logs/runs/*/log.csv --model physical --out runs/flow/plain",
