@@ -376,6 +376,66 @@ def blind_table() -> str:
     return table(["figure", "seed 3 (new)", "seed 2", "target"], rows)
 
 
+# ---------------------------------------------------------------- the long-runs page
+
+
+def soak_table(names: tuple[str, ...]) -> Callable[[], str]:
+    """docs/long-runs.md: the soak runs kept in the data files ``names`` (in order), one row a run: hours,
+    layout, wall time, peak memory (the scheduler's and the largest node's with ``--processes``), files, speed."""
+    def render() -> str:
+        rows = []
+        for name in names:
+            for r in load(name)["output"]["runs"]:
+                processes = r["layout"] == "processes"
+                peak = f"{r['peak_mb']:.1f}" + (f" (scheduler); largest node {r['nodes_peak_mb']:.1f}"
+                                                if processes and r.get("nodes_peak_mb") else "")
+                rows.append([f"{r['hours']:g}", "`--processes`" if processes else "one process", f"{r['wall_s']:.1f}",
+                             peak, f"{r['files_mb']:.1f}", f"{r['realtime_factor']:.1f}x"])
+        return table(["hours", "layout", "wall [s]", "peak memory [MB]", "files [MB]", "real-time factor"], rows)
+    return render
+
+
+def realtime_table() -> str:
+    """docs/getting-started.md: the racetrack paced at real time, per layout: ticks, missed, lateness, SCHED_FIFO."""
+    o = load("realtime")["output"]
+    rows = []
+    for key, label in (("one", "one process"), ("processes", "`--processes`")):
+        if key in o:
+            r, late = o[key], o[key]["lateness_ms"]
+            rows.append([label, str(r["ticks"]), str(r["missed"]),
+                         f"{late['p50']:.2f} / {late['p99']:.2f} / {late['max']:.2f}",
+                         "granted" if r["sched_fifo"] is True else f"not granted ({r['sched_fifo']})"])
+    return table(["layout", "ticks", "missed", "lateness p50 / p99 / max [ms]", "SCHED_FIFO"], rows)
+
+
+def sweep_jobs_table() -> str:
+    """docs/scaling-out.md: the Fig. 6 sweep and the reproduction with one worker and with two: wall times,
+    ratio, and whether the rows, logs or tables came out the same."""
+    fig6, quick, full = (load(n) for n in ("sweep_jobs", "sweep_jobs_reproduce_quick", "sweep_jobs_reproduce"))
+
+    def wall(o: dict, key: str) -> str:
+        w = o[key]
+        return f"{w['median']:g} s" if "median" in w else f"{w['runs'][0]:g} s"
+
+    o = fig6["output"]
+    same = "identical (rows but for `solve_ms`; all 55 `log.csv`)" if o["rows_identical_but_timings"] and \
+        o["logs_identical"] else "rows or logs differ"
+    rows = [["Fig. 6 (`feedback_sweep`, 55 runs of 50 s)", wall(o, "jobs_1_wall_s"), wall(o, "jobs_2_wall_s"),
+             f"{o['ratio']:.2f}", same]]
+    for label, d in (("`cosim reproduce --quick` (fresh cache)", quick),
+                     (f"`cosim reproduce` (fresh cache; one run each, {full['machine_load']})", full)):
+        o = d["output"]
+        rows.append([label, wall(o, "jobs_1_wall_s"), wall(o, "jobs_2_wall_s"), f"{o['ratio']:.2f}",
+                     "tables identical but for the timings" if o["tables_identical_but_timings"] else "tables differ"])
+    return table(["sweep", "`--jobs 1`", "`--jobs 2`", "ratio", "rows, logs"], rows)
+
+
+#: The soak runs of the long-runs page's two tables: ``soak.py --hours 1 12`` (one process, then its
+#: ``--processes`` hour), and ``soak.py --no-one-process --processes-hours 1 12``.
+SOAK_TABLES = {"soak-hours-1-12": ("soak_one_process", "soak_processes_first"),
+               "soak-processes-12h": ("soak_processes",)}
+
+
 #: Every table a page may mark, by name: what renders it (from the data files it loads).
 TABLES: dict[str, Callable[[], str]] = {
     "benchmarks": benchmarks_table,
@@ -384,6 +444,9 @@ TABLES: dict[str, Callable[[], str]] = {
     "diagnose-several-effects-bench": several_effects_table,
     "diagnose-hidden-effects": hidden_effects_table,
     "diagnose-blind-bench": blind_table,
+    **{name: soak_table(files) for name, files in SOAK_TABLES.items()},
+    "realtime": realtime_table,
+    "sweep-jobs": sweep_jobs_table,
 }
 
 

@@ -25,7 +25,10 @@ def test_every_marked_table_is_what_its_data_render():
 
 def test_every_data_file_has_its_header_and_is_used():
     used = {name for row in bench_tables.ROWS for name in row.data}
-    used |= {"archive", "blind_groups_s8", "walkthrough_hidden_effects"} | {n for n, _ in bench_tables.DRIFT_SEEDS}
+    used |= {"archive", "walkthrough_hidden_effects"} | {n for n, _ in bench_tables.DRIFT_SEEDS}
+    used |= {n for n, _ in bench_tables.SEVERAL_SEEDS}
+    used |= {n for names in bench_tables.SOAK_TABLES.values() for n in names}
+    used |= {"sweep_jobs_reproduce_quick", "sweep_jobs_reproduce"}
     files = {p.stem: json.loads(p.read_text()) for p in bench_tables.DATA.glob("*.json")}
     assert used <= set(files), used - set(files)
     assert set(files) <= used, f"data no table renders: {set(files) - used}"
@@ -50,6 +53,23 @@ def test_the_check_names_the_page_whose_table_a_figure_changed(monkeypatch):
     assert any("docs/diagnose/drift.md: table diagnose-archive differs" in p for p in problems), problems
     assert any("docs/benchmarks.md: table benchmarks differs" in p for p in problems), problems  # archive's row
     assert not any("several-effects" in p for p in problems), problems
+
+
+def test_a_changed_soak_figure_makes_the_long_runs_table_stale(monkeypatch):
+    """The long-runs page's soak tables are rendered from the kept runs, every column of them."""
+    real = bench_tables.load
+
+    def changed(name):
+        data = real(name)
+        if name == "soak_processes_first":
+            data = json.loads(json.dumps(data))
+            data["output"]["runs"][0]["files_mb"] += 0.1
+        return data
+
+    monkeypatch.setattr(bench_tables, "load", changed)
+    problems = bench_tables.stale()
+    assert problems == ["docs/long-runs.md: table soak-hours-1-12 differs from its data; remake it: "
+                        ".venv/bin/python tools/bench_tables.py"], problems
 
 
 def test_an_unknown_or_missing_table_and_missing_data_are_named(monkeypatch, tmp_path):

@@ -107,3 +107,26 @@ def test_the_code_digest_sees_code_and_scenarios_but_not_docstrings_or_imports(t
     assert code_digest(names, root=tmp_path) != changed
     with pytest.raises(FileNotFoundError, match="gone"):
         code_digest(("gone",), root=tmp_path)
+
+
+def test_the_trims_keep_what_the_pages_say_they_show():
+    """The effects, lab-logs and long-runs pages' trims: a sweep's own table (not a run's before it), the
+    rows and columns asked for; a verdict cut to its fitted values or first clue; no progress bar."""
+    sweep = ("| shape | angle_deg | tracking error [mm] |\n|---|---|---|\n| circle | 0 | 0.4 |\n\n"
+             "| model | interval_s | tracking error [mm] | max [mm] |\n|---|---|---|---|\n"
+             "| none | 0.1 | 0.5 ± 0.1 | 0.9 |\n| none | 2.0 | 9.1 ± 1.0 | 20.0 |\n\n"
+             "largest interval_s with mean tracking error below 4.6 mm: 0.1 (model=none)\ntable:     x/summary.md")
+    assert doc_outputs.sweep_rows("interval_s", ("2.0",), ("max [mm]",))(sweep) == (
+        "| model | interval_s | tracking error [mm] |\n| --- | --- | --- |\n| none | 2.0 | 9.1 ± 1.0 |\n\n"
+        "largest interval_s with mean tracking error below 4.6 mm: 0.1 (model=none)")
+    with pytest.raises(SystemExit, match="no table with a column 'seed'"):
+        doc_outputs.sweep_rows("seed", ("1",), ())(sweep)
+    diagnosis = ("held-out error [mm]\n\nrank effect   error 1.0 s\n1    a   0.5\n\nround 2\n"
+                 "verdict: a explains the error: it falls (t = 9). Fitted: c = 0.2 ± 0.01 uN s/mm. The rest ...")
+    assert doc_outputs.ranking_and_short_verdict(diagnosis) == (
+        "rank effect   error 1.0 s\n1    a   0.5\n\n"
+        "verdict: a explains the error: ... Fitted: c = 0.2 ± 0.01 uN s/mm.")
+    clues = "verdict: nothing explains it. Clues: the wall: 1.4x (eta^2 = 0.25); centre: 1.3x; more"
+    assert doc_outputs.verdict_to_first_clue(clues) == clues.split("; centre")[0] + "; ..."
+    run = "tracking error: 0.45 mm\n100 steps, 2.0 s simulated\n\r3066step [00:02, 1530.16step/s]\r   \rstopped"
+    assert doc_outputs.without_progress(run) == "tracking error: 0.45 mm\n100 steps, 2.0 s simulated\nstopped"
