@@ -34,11 +34,11 @@ TIMELINE = "sim_time"  # simulated time [s], the timeline of every file of a run
 PATH_LOG_HZ = 10.0
 MERGE_TIMEOUT_S = 600.0
 #: Whether a run's ``.rrd`` files end with rerun's footer, a manifest of every chunk. Off: rerun keeps
-#: that manifest in memory for the whole life of the file (about 0.5 kB per chunk; a run sends a
-#: dozen chunks or so per batch, one batch a second of wall time, so ~40 MB for a 12 h racetrack
-#: run with ``--processes``) and builds the footer from it when the file closes. Without it the
-#: file is a whole recording that the viewer opens as before; ``rerun rrd optimize`` can add a
-#: footer afterwards (it reads the whole file).
+#: that manifest in memory for the whole life of the file (about 0.5 kB per chunk; the racetrack
+#: sends ~15 chunks per batch, one batch a second of wall time, so ~20 MB over a 12 h run with
+#: ``--processes``) and builds the footer from it when the file closes. Without it the file is a
+#: whole recording that the viewer opens as before (rerun's own reader scans it instead of reading
+#: its manifest); ``rerun rrd optimize`` can add a footer afterwards (it reads the whole file).
 WRITE_FOOTER = False
 
 
