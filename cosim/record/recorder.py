@@ -246,15 +246,22 @@ class TraceRecorder:
                     file.close()
             except OutputWriteError as exc:
                 failures.append(exc)
-        rest = {k: np.array(v) for k, v in self._held(self._trace_start, self.ticks).items()}
-        job = threading.Thread(target=self._trace.finish, args=(rest, self.part_dir / "trace.npz"),
-                               name="cosim-trace-join", daemon=False)
-        job.start()
-        self._joining = [j for j in self._joining if j.is_alive()] + [job]
-        self._drop_held()
-        if last:
+        held = self._held(self._trace_start, self.ticks)
+        if last:  # joined here, from the rows held: nothing else writes into them any more
             for job in self._joining:
                 job.join()
+            try:
+                with _writing(self.part_dir / "trace.npz"):
+                    self._trace.finish(held, self.part_dir / "trace.npz")
+            except OutputWriteError as exc:
+                failures.append(exc)
+        else:  # joined in a thread, from a copy of the rows held (the next part's ticks overwrite them)
+            rest = {k: np.array(v) for k, v in held.items()}
+            job = threading.Thread(target=self._trace.finish, args=(rest, self.part_dir / "trace.npz"),
+                                   name="cosim-trace-join", daemon=False)
+            job.start()
+            self._joining = [j for j in self._joining if j.is_alive()] + [job]
+        self._drop_held()
         if self.part_ticks is None:
             self.files["trace"] = self.part_dir / "trace.npz"
         if failures:

@@ -12,6 +12,10 @@ text under ``events``. A component that logs something of its own (camera
 images) streams it to a part beside it (:func:`component_recording`) that
 joins it when the run ends (:func:`merge_parts`); the layout has the views it
 asks for.
+
+The files are written without rerun's footer (:data:`WRITE_FOOTER`): to write one,
+rerun keeps a manifest entry for every chunk sent until the file closes, which
+grows with the run's length (see :func:`save`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,13 @@ APPLICATION_ID = "cosim"
 TIMELINE = "sim_time"  # simulated time [s], the timeline of every file of a run's recording
 PATH_LOG_HZ = 10.0
 MERGE_TIMEOUT_S = 600.0
+#: Whether a run's ``.rrd`` files end with rerun's footer, a manifest of every chunk. Off: rerun keeps
+#: that manifest in memory for the whole life of the file (about 0.5 kB per chunk; the racetrack
+#: sends ~15 chunks per batch, one batch a second of wall time, so ~20 MB over a 12 h run with
+#: ``--processes``) and builds the footer from it when the file closes. Without it the file is a
+#: whole recording that the viewer opens as before (rerun's own reader scans it instead of reading
+#: its manifest); ``rerun rrd optimize`` can add a footer afterwards (it reads the whole file).
+WRITE_FOOTER = False
 
 
 def blueprint(spatial: bool, plots: list | tuple = (), views: list | tuple = ()) -> rrb.Blueprint:
@@ -54,8 +65,26 @@ def component_recording(run_dir: Path, recording_id: str, component: str) -> rr.
     it into ``recording.rrd``. Log on the :data:`TIMELINE` timeline.
     """
     rec = rr.RecordingStream(application_id=APPLICATION_ID, recording_id=recording_id)
-    rec.save(str(Path(run_dir) / f"recording.{component}.rrd"))
+    save(rec, Path(run_dir) / f"recording.{component}.rrd")
     return rec
+
+
+def save(rec: rr.RecordingStream, path: Path, default_blueprint: rrb.Blueprint | None = None) -> None:
+    """Stream ``rec`` to the file ``path``, with a footer only if :data:`WRITE_FOOTER`. rerun warns on
+    standard error about every file it writes without one; that is this module's choice, so the line
+    is kept off standard error (for the length of this call only)."""
+    if WRITE_FOOTER:
+        rec.save(str(path), default_blueprint=default_blueprint, write_footer=True)
+        return
+    sys.stderr.flush()
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        rec.save(str(path), default_blueprint=default_blueprint, write_footer=False)
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
 
 
 def set_aside_parts(run_dir: Path) -> list[Path]:
@@ -165,7 +194,7 @@ class RecordingWriter:
         plots += [v for view in self.views for v in view.layout()]
         self.rec = rec = rr.RecordingStream(application_id=APPLICATION_ID,
                                             recording_id=recorder.scenario.recording_id)
-        rec.save(str(out_path), default_blueprint=blueprint(bool(self._points), plots, component_views))
+        save(rec, Path(out_path), blueprint(bool(self._points), plots, component_views))
         if self.path is not None and not self.path.time_varying:
             rec.log("world/path", rr.LineStrips3D([self.path.points(0.0)], colors=[[255, 200, 0]]), static=True)
         for entity, _, color, radius in self._points:

@@ -97,13 +97,18 @@ class ChunkedTrace:
                 with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
                     np.lib.format.write_array_header_1_0(member, {"descr": "<f8", "fortran_order": False,
                                                                   "shape": (total, *shape)})
-                    for file in files:
+                    for file in files:  # one chunk's column at a time, written from its own buffer
                         with np.load(file) as chunk:
-                            member.write(np.ascontiguousarray(chunk[name], dtype="<f8").tobytes())
-                    member.write(np.ascontiguousarray(rest[name], dtype="<f8").tobytes())
+                            member.write(_raw(chunk[name]))
+                    member.write(_raw(rest[name]))
         os.replace(tmp, path)
         shutil.rmtree(self.dir)
         return path
+
+
+def _raw(values: np.ndarray) -> memoryview:
+    """``values`` as little-endian float64 bytes in C order, without a copy when they already are."""
+    return memoryview(np.ascontiguousarray(values, dtype="<f8").reshape(-1))
 
 
 def _layout_error(run_dir: Path):
