@@ -239,7 +239,7 @@ ROWS = (
         ("mutation_stepper_portcache", "mutation"), _mutation),
     Row("soak.py", "the racetrack for hours of simulated time (1 h and 12 h in one process, 1 h and 12 h with "
         "`--processes`): peak memory", "12 h peak within 10 % of 1 h, both <= 400 MB",
-        ("soak_one_process", "soak_processes"), _soak),
+        ("soak_processes_bounded", "soak_one_process", "soak_processes"), _soak),
     Row("realtime.py", "the racetrack paced at real time, one process / `--processes`: missed ticks, lateness",
         "missed <= 0.1 %, p99 <= 2 ms", ("realtime",), _realtime),
 )
