@@ -146,7 +146,8 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     cpus = node_cpus(request.node_cpus) if request.processes else None
     wiring = build_wiring(scenario)
     path = make_path(scenario.path.plugin, scenario.path.params) if scenario.path else None
-    out = Path(request.out_dir)  # made only once the scenario has validated
+    plan = load_hosts(request.hosts, scenario) if request.processes and request.hosts else None
+    out = Path(request.out_dir)  # made only once the scenario and the hosts file have validated
     out.mkdir(parents=True, exist_ok=True)
     run_id = secrets.token_hex(4)
     from cosim.record.rerun_log import set_aside_parts
@@ -157,7 +158,6 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     realtime = request.realtime or scenario.realtime
     write_json(out / "summary.json", {"scenario": scenario.name, "status": "running", "pid": os.getpid(),
                                        "note": "written when the run started; a run that ends rewrites it"})
-    plan = load_hosts(request.hosts, scenario) if request.processes and request.hosts else None
     # one machine: unix sockets in a 0700 folder of this run, which no other user can reach
     private = PrivateEndpoints() if request.processes and not plan else None
     endpoint = (plan.scheduler_listen if plan else private.endpoint("scheduler")) if request.processes else None

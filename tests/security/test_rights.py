@@ -139,6 +139,7 @@ def test_plain_tcp_beyond_loopback_is_refused(tmp_path, capsys):
     assert code == 2
     assert ("scheduler.listen (line 1): tcp/0.0.0.0:7447: plain TCP beyond loopback lets anyone on the network "
             "join the run") in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()  # a refused hosts file writes nothing
 
 
 def test_rights_text_round_trips_and_bad_text_is_named():
