@@ -215,7 +215,7 @@ BLOCKS: dict[str, Block] = {
     "dask-refused": Block(("cosim run feedback_sweep --executor dask://tls://127.0.0.1:8786",
                            "cosim run feedback_sweep --executor dask://10.0.0.5:8786"), exit_codes=(2,), stderr=True),
     "lab-logs": Block(
-        ('ln -s "$DOCS_ROOT/examples" examples',
+        ('ln -sfn "$DOCS_ROOT/examples" examples',
          "cosim run diagnose/plain --out runs/lab/rig --quiet",
          "for case in helix wide vertical tilted; do\n"
          "  python examples/lab_recording.py runs/lab/rig/runs/*_case=$case --out runs/lab/recordings/$case\n"
@@ -245,7 +245,7 @@ BLOCKS: dict[str, Block] = {
         show=(3,), keep=sweep_rows("interval_s", ("0.42", "1.0", "1.5", "2.0"), SWEEP_DROP), slow=True,
         depends=FLOW_KF_CODE),
     "diagnose-own-effect": Block(
-        ('ln -s "$DOCS_ROOT/examples" examples',
+        ('ln -sfn "$DOCS_ROOT/examples" examples',
          "cosim run diagnose/plain --out runs/diag_wall --quiet --set components.plant.params.wall_drag_on=true "
          "--set components.plant.params.wall_drag_length=0.008 --set components.plant.params.wall_drag_gain=3",
          "cosim diagnose runs/diag_wall/runs/*/log.csv --effects-file examples/my_effect.py "
