@@ -38,18 +38,23 @@ def test_every_data_file_has_its_header_and_is_used():
             (name, data["source"])
 
 
-def test_the_check_names_the_page_whose_table_a_figure_changed(monkeypatch):
+def _stale_with(monkeypatch, name: str, edit) -> list[str]:
+    """What the check says once data ``name`` reads with ``edit(output)`` applied (the file is left as it is)."""
     real = bench_tables.load
 
-    def changed(name):
-        data = real(name)
-        if name == "archive":
+    def changed(which):
+        data = real(which)
+        if which == name:
             data = json.loads(json.dumps(data))
-            data["output"]["runs"][-1]["wall_s"] += 0.1
+            edit(data["output"])
         return data
 
     monkeypatch.setattr(bench_tables, "load", changed)
-    problems = bench_tables.stale()
+    return bench_tables.stale()
+
+
+def test_the_check_names_the_page_whose_table_a_figure_changed(monkeypatch):
+    problems = _stale_with(monkeypatch, "archive", lambda o: o["runs"][-1].update(wall_s=o["runs"][-1]["wall_s"] + 0.1))
     assert any("docs/diagnose/drift.md: table diagnose-archive differs" in p for p in problems), problems
     assert any("docs/benchmarks.md: table benchmarks differs" in p for p in problems), problems  # archive's row
     assert not any("several-effects" in p for p in problems), problems
@@ -57,17 +62,8 @@ def test_the_check_names_the_page_whose_table_a_figure_changed(monkeypatch):
 
 def test_a_changed_soak_figure_makes_the_long_runs_table_stale(monkeypatch):
     """The long-runs page's soak tables are rendered from the kept runs, every column of them."""
-    real = bench_tables.load
-
-    def changed(name):
-        data = real(name)
-        if name == "soak_processes_first":
-            data = json.loads(json.dumps(data))
-            data["output"]["runs"][0]["files_mb"] += 0.1
-        return data
-
-    monkeypatch.setattr(bench_tables, "load", changed)
-    problems = bench_tables.stale()
+    problems = _stale_with(monkeypatch, "soak_processes_first",
+                           lambda o: o["runs"][0].update(files_mb=o["runs"][0]["files_mb"] + 0.1))
     assert problems == ["docs/long-runs.md: table soak-hours-1-12 differs from its data; remake it: "
                         ".venv/bin/python tools/bench_tables.py"], problems
 
