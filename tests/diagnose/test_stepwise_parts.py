@@ -45,6 +45,23 @@ def test_predictions_apart_cancels_the_measurement():
     assert predictions_apart(a, b) == pytest.approx(0.5)
 
 
+def test_look_alikes_are_told_apart_by_the_log_where_their_predictions_differ():
+    """Four logs where two members predict alike and one (an experiment) where they differ by 0.4 mm: pooled, the
+    distance is 0.08 mm, under half a 0.2 mm floor; log by log it is the experiment's 0.4 mm."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.lookalike import evidence_of
+
+    logs = np.repeat(np.arange(5), 40)
+    apart = np.where(logs == 4, 0.4, 0.0)[:, None] * [1.0, 0.0, 0.0]
+    ev = {KEY: {"valid": np.ones(200, bool), "err": np.zeros((200, 3))}}
+    lead, rival = SimpleNamespace(ev=ev), SimpleNamespace(ev={KEY: {"valid": ev[KEY]["valid"], "err": apart}})
+    fitter = SimpleNamespace(tte=SimpleNamespace(log=logs), test_starts=np.arange(200),
+                             paired_t=lambda a, b: 0.0, paired_t_horizons=lambda a, b: 0.0)
+    out = evidence_of(fitter, lead, rival, KEY)
+    assert out["differ_mm"] == pytest.approx(0.08) and out["differ_log_mm"] == pytest.approx(0.4)
+
+
 def test_excitations_stay_in_the_band():
     t = np.arange(2000) * 0.02
     for e in candidates((4.0, 16.0), 40.0):
