@@ -5,7 +5,7 @@ the residual force is regressed on a library of candidate force terms
 (:data:`TERMS`: constants, position, velocity and command, |v| v, |u| u,
 position x command, drag near a wall, quadratic position terms; not the
 model's own drag, thrust and weight terms) by sparse regression: forward
-orthogonal least squares (pysindy's ``FROLS``, :func:`forward_selection`: one
+orthogonal least squares (FROLS, :func:`forward_selection`: one
 term at a time, the one that explains most of what is left), in the same
 output-error setting as the effect fits:
 
@@ -30,7 +30,6 @@ Units: p mm, v mm/s, u Hz, force uN.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -202,9 +201,8 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1) 
     n_terms = len(TERMS)
     host_idx = [i for i, n in enumerate(jm.names) if "." not in n]
     term_idx = [jm.names.index(f"_library.{t.name}") for t in TERMS]
-    say(f"discover: sensitivities of {n_terms} candidate terms on {len(train.starts)} + {len(test_win)} windows")
+    say(f"discover: sensitivities of {n_terms} candidate terms on {len(train.starts)} training windows")
     r_tr, J_tr, H_tr = _sensitivities(jm, ttr, train, term_idx, host_idx, jobs)
-    r_te, J_te, H_te = _sensitivities(jm, tte, test, term_idx, host_idx, jobs)
     # the host's own parameters stay free: project their columns out of the training problem
     Q, _ = np.linalg.qr(H_tr)
     Jp = J_tr - Q @ (Q.T @ J_tr)
@@ -212,9 +210,15 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1) 
     norms = np.linalg.norm(Jp, axis=0)
     keep = norms > 1e-6 * max(norms.max(), 1e-300)
     cols = np.flatnonzero(keep)
+    steps = list(forward_selection(Jp[:, cols], rp, MAX_TERMS))
+    # the held-out windows need the sensitivities of the terms on the path only (each step adds one)
+    used = cols[steps[-1][0]] if steps else np.zeros(0, dtype=int)
+    r_te, J_used, H_te = _sensitivities(jm, tte, test, [term_idx[j] for j in used], host_idx, jobs)
+    J_te = np.zeros((len(r_te), n_terms))
+    J_te[:, used] = J_used
     base_err = _rms(r_te)
     path = [(0, base_err, np.zeros(n_terms))]
-    for sel, coef in forward_selection(Jp[:, cols], rp, MAX_TERMS):
+    for sel, coef in steps:
         xi = np.zeros(n_terms)
         xi[cols[sel]] = coef
         eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]  # host adjustment for these terms
@@ -254,28 +258,31 @@ def forward_selection(X: np.ndarray, y: np.ndarray, max_terms: int):
 
     ``X`` (N, M) candidate columns, ``y`` (N,) target. Each step takes the
     column whose part orthogonal to the columns chosen so far explains most of
-    what ``y`` still leaves (pysindy's ``FROLS``, forward regression orthogonal
-    least squares), then refits ``y`` on all chosen columns. The columns are
-    scaled to unit norm first and the problem is reduced to its (M, M)
-    triangular factor (``X = Q R``: same projections, same order of choice, in
-    a fraction of the time). Yields ``(chosen (k,) column indices, coefficients
-    (k,))`` for k = 1 .. ``max_terms`` (fewer when the columns run out).
+    what ``y`` still leaves (the largest error reduction ratio
+    ``(w.y)^2 / (w.w)``, ``w`` the column's orthogonal part: forward regression
+    orthogonal least squares, as in pysindy's ``FROLS``), then refits ``y`` on
+    all chosen columns. The columns are scaled to unit norm first and the
+    problem is reduced to its (M, M) triangular factor (``X = Q R``: same
+    projections, same order of choice, in a fraction of the time). Yields
+    ``(chosen (k,) column indices, coefficients (k,))`` for k = 1 ..
+    ``max_terms`` (fewer when the columns run out, or when the best remaining
+    column is (nearly) spanned by the chosen ones: its coefficients would be arbitrary).
     """
-    from pysindy.optimizers import FROLS
-
     norms = np.linalg.norm(X, axis=0)
     q, r = np.linalg.qr(X / np.where(norms > 0, norms, 1.0))
-    opt = FROLS(max_iter=min(max_terms, X.shape[1]), alpha=1e-12, normalize_columns=False)
-    with warnings.catch_warnings():  # FROLS warns when it stops early; the path so far is what is wanted
-        warnings.simplefilter("ignore")
-        opt.fit(r, (q.T @ y)[:, None])
+    b = q.T @ y
+    w = r.copy()  # (M, M): each column's part orthogonal to the chosen ones
     seen: list[int] = []
-    for coef in opt.history_[1:]:  # history_[k]: the fit with k terms (history_[0] has none)
-        support = np.flatnonzero(np.asarray(coef).reshape(-1))
-        new = [int(j) for j in support if j not in seen]
-        if len(new) != 1 or (seen and _outside_share(r[:, seen], r[:, new[0]]) < COLLINEAR):
-            return  # no further column, or one the chosen ones (nearly) span: its coefficients would be arbitrary
-        seen += new
+    for _ in range(min(max_terms, X.shape[1])):
+        ww = np.einsum("ij,ij->j", w, w)
+        err = np.where(ww > 0, (w.T @ b) ** 2 / np.where(ww > 0, ww, 1.0), -1.0)
+        err[seen] = -1.0
+        best = int(np.argmax(err))
+        if err[best] < 0 or (seen and _outside_share(r[:, seen], r[:, best]) < COLLINEAR):
+            return
+        seen.append(best)
+        unit = w[:, best] / np.sqrt(ww[best])
+        w -= np.outer(unit, unit @ w)
         chosen = np.array(seen)
         yield chosen, np.linalg.lstsq(X[:, chosen], y, rcond=None)[0]
 

@@ -101,7 +101,7 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
     search put in ``final``, each checked again once the drift is allowed for (``given_drift``: those that
     no longer pass the verdict's tests are dropped); ``floor``: the noise floor at the reference horizon [mm].
     """
-    from cosim_plugins.diagnose.fitting import reduction_of  # fitting -> verdict -> this module
+    from cosim_plugins.diagnose.fitting import fork_map, picklable, reduction_of  # fitting -> verdict -> here
 
     say = say or (lambda msg: None)
     jm, ttr, tte = final.model, fitter.ttr, fitter.tte
@@ -138,15 +138,20 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
     def gate(fit_out) -> bool:
         return _matters(fit_out["reduction"], fit_out["t_stat"], before, fit_out["rollout_mm"][key], floor)
 
-    between = within = None
+    fits = []  # (units, their training windows): per log, per block of time; fitted at once over --jobs
     if n_logs >= 2:
         starts_log = sample_per_unit(train_starts, logs, fitter.s.seed + 5)
         say(f"drift: {', '.join(names)} free per log ({n_logs} logs, {len(starts_log)} windows) ...")
-        between = fit_per_unit(jm, ttr, starts_log, logs, names, lead, k_ref, cluster)
+        fits.append((logs, starts_log))
     if blocks.n > n_logs:
         starts_block = sample_per_unit(train_starts, blocks, fitter.s.seed + 6)
         say(f"drift: {', '.join(names)} free per block of time ({blocks.n} blocks, {len(starts_block)} windows) ...")
-        within = fit_per_unit(jm, ttr, starts_block, blocks, names, lead, k_ref, cluster)
+        fits.append((blocks, starts_block))
+    jobs = fitter.s.jobs if picklable(jm.effects) else 1
+    done = fork_map(lambda i: fit_per_unit(jm, ttr, fits[i][1], fits[i][0], names, lead, k_ref, cluster),
+                    len(fits), jobs, "drift fits")
+    between = done.pop(0) if n_logs >= 2 else None
+    within = done.pop(0) if blocks.n > n_logs else None
     trends = {}  # within logs, per quantity; their scatter also widens the between-log test
     flagged: dict[str, _Shown] = {}
     if between is not None:

@@ -19,6 +19,7 @@ from cosim_plugins.diagnose.verdict import paired_t, paired_t_horizons
 from cosim_plugins.identify.joint import JointModel, fit_joint, supports_effects
 
 QUICK_NFEV = 6  # evaluations of a screening fit (stepwise rounds after the first, see stepwise.rank)
+QUICK_STRIDE = 2  # ... on every second training window (its drop is a screen: the full fit decides)
 # the baseline's starts spread over the velocity time constant (the quick fit's forces all scaled together: the
 # same speed per Hz, another time constant). On 0.5 s windows with a free initial velocity the time constant of a
 # slow swimmer is barely determined, and a fit from the quick start alone can end several times too fast.
@@ -50,9 +51,10 @@ class Fitter:
     def with_effects(self, before: Fit, effects, say=None, quick: bool = False) -> tuple[Fit, bool]:
         """(``before``'s model plus ``effects``, all parameters refitted jointly; whether the new parameters
         change the predictions at all). ``quick``: a screening fit (:data:`QUICK_NFEV` evaluations from the
-        listed starts, no equation-error starts, no open-loop polish)."""
+        listed starts, no equation-error starts, no open-loop polish, every :data:`QUICK_STRIDE`-th training
+        window)."""
         if quick:
-            fitted = _with_effects(before.model, effects, self.ttr, self.fit_starts, self.fit_len,
+            fitted = _with_effects(before.model, effects, self.ttr, self.fit_starts[::QUICK_STRIDE], self.fit_len,
                                    replace(self.s, max_nfev=QUICK_NFEV), say, self.score, None, fresh=False)
         else:
             fitted = _with_effects(before.model, effects, self.ttr, self.fit_starts, self.fit_len, self.s, say,
@@ -66,7 +68,7 @@ class Fitter:
         processes (they inherit this fitter's data; each returns its fit). One process when ``jobs`` is 1, the
         platform cannot fork, or a fit's effects (``before``'s and the new one) cannot be sent between processes
         (then each fit runs here)."""
-        jobs = self.s.jobs if _picklable([*before.model.effects, *effects]) else 1
+        jobs = self.s.jobs if picklable([*before.model.effects, *effects]) else 1
         return fork_map(lambda i: self.with_effects(before, [effects[i]], quick=quick), len(effects), jobs,
                         "quick fits" if quick else "candidate fits")
 
@@ -142,7 +144,8 @@ def _call_forked(i: int):
     return _FORKED(i)
 
 
-def _picklable(obj) -> bool:
+def picklable(obj) -> bool:
+    """Whether ``obj`` can be sent to another process (an effect file's function may not be importable there)."""
     try:
         pickle.dumps(obj)
     except Exception:  # an effect file's function that another process cannot import, etc.

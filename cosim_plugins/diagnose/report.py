@@ -101,8 +101,19 @@ def _plot_time(diag, plt):
     axes[-1, 0].set_xlabel("time in log [s]")
     fig.suptitle(f"open-loop prediction error at {diag.result['reference_horizon_s']:g} s over time, each log "
                  "(all windows: training and held-out)", fontsize=10)
-    fig.tight_layout()
+    _margins(fig, left=0.6, right=0.15, top=0.65, bottom=0.6, hgap=0.4)
     return fig
+
+
+def _margins(fig, left: float, right: float, top: float, bottom: float, hgap: float, wgap: float = 0.0) -> None:
+    """Fixed margins and gaps between a grid's axes [inches] (the grid plots' labels have known sizes: laying
+    them out by measuring the text, as tight_layout does, costs a second drawing of the figure)."""
+    w, h = fig.get_size_inches()
+    rows, cols = fig.axes[0].get_subplotspec().get_gridspec().get_geometry()
+    axes_h = (h - top - bottom - (rows - 1) * hgap) / rows
+    axes_w = (w - left - right - (cols - 1) * wgap) / cols
+    fig.subplots_adjust(left=left / w, right=1.0 - right / w, top=1.0 - top / h, bottom=bottom / h,
+                        hspace=hgap / axes_h, wspace=wgap / axes_w)
 
 
 def _plot_features(diag, plt):
@@ -128,7 +139,7 @@ def _plot_features(diag, plt):
         ax.axis("off")
     fig.suptitle(f"error of {diag.result['localisation']['model']} by region, time and condition (dashed: mean)",
                  fontsize=10)
-    fig.tight_layout()
+    _margins(fig, left=0.6, right=0.15, top=0.65, bottom=0.5, hgap=0.7, wgap=0.6)
     return fig
 
 

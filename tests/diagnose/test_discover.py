@@ -36,6 +36,31 @@ def test_forward_selection_never_takes_a_column_the_chosen_ones_already_span():
     assert len(picked) == 2 and set(picked[1]) in ({2, 0}, {2, 1}, {2, 3})  # then one more; nothing is left
 
 
+def test_forward_selection_chooses_in_the_order_of_pysindys_frols():
+    """An independent reference: on random sparse problems with correlated columns of mixed scales, the
+    order of choice is pysindy's FROLS's on the same unit-norm columns (FROLS yields one term fewer)."""
+    import warnings
+
+    from pysindy.optimizers import FROLS
+
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        n, m = int(rng.integers(40, 300)), int(rng.integers(6, 30))
+        X = (rng.normal(size=(n, m)) @ (np.eye(m) + 0.4 * rng.normal(size=(m, m)))) * rng.uniform(0.01, 100, m)
+        w = np.zeros(m)
+        w[rng.choice(m, 4, replace=False)] = rng.normal(size=4) / np.linalg.norm(X, axis=0)[:4]
+        y = X @ w + 0.05 * rng.normal(size=n) * np.std(X @ w)
+        ours = [sel.tolist() for sel, _ in D.forward_selection(X, y, 8)]
+        opt = FROLS(max_iter=8, alpha=1e-12, normalize_columns=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            opt.fit(X / np.linalg.norm(X, axis=0), y[:, None])
+        order: list[int] = []
+        for coef in opt.history_[1:]:
+            order += [int(j) for j in np.flatnonzero(np.asarray(coef).reshape(-1)) if j not in order]
+        assert ours[len(order) - 1] == order
+
+
 def _form(**coefs):
     """Terms and coefficients from names like fx_y=..., the host's drag and thrust."""
     by_name = {t.name: t for t in D.TERMS}
