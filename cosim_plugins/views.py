@@ -1,7 +1,7 @@
 """The swimmer's view of a run: the tank, the swimmer's axis and the field in 3D, the
 command and the coil currents over time, and the raw log ``log.csv``.
 
-Registered through ``cosim_register_views`` (see :mod:`cosim.record.views`);
+Registered through ``cosim_register_views`` (see :mod:`cosim.contract.views`);
 it applies to a run that records the command (role ``omega``) and the
 measured position, as every swimmer scenario does. The framework draws the
 path and the true, measured and estimated positions itself.
@@ -15,8 +15,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from cosim import hookimpl
-from cosim.record.rerun_log import log_arrows, log_scalars
-from cosim.record.views import RunView
+from cosim.api import log_arrows, log_scalars
+from cosim.contract.views import RunView
 from cosim_plugins.raw_log import LogWriter
 
 TANK_HALF_M = 0.075
@@ -81,6 +81,23 @@ class SwimmerView(RunView):
 
     def open_files(self, recorder, out_dir: Path) -> dict:
         return {"log": RawLogFile(out_dir / self.files["log"])}
+
+
+#: The swimmer's ports of the framework's recorded roles (a scenario's ``record:`` rebinds them).
+DEFAULT_ROLES = {
+    "measured": "camera.position",
+    "truth": "plant.position",
+    "estimate": "estimator.position",
+    "solve_time": "controller.solve_time",
+    "prediction_error": "estimator.innovation",
+    "capture_time": "camera.capture_time",
+}
+
+
+@hookimpl
+def cosim_default_roles(register):
+    for role, port in DEFAULT_ROLES.items():
+        register(role, port)
 
 
 @hookimpl

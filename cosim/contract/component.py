@@ -14,24 +14,8 @@ from typing import Any, Mapping, Protocol
 
 import numpy as np
 
-from cosim.contract.errors import UserError
-
-
-class ComponentError(UserError):
-    """A component rejected its parameters or failed while stepping."""
-
-
-class InputEnded(Exception):
-    """Raised by a component's ``step`` when the recorded input it replays has run out: the run
-    ends there, as one that ran its duration does (status ``ok``), with the ticks before this one."""
-
-
-class ComponentFault(RuntimeError):
-    """A component detected an unsafe condition and asks the run to stop cleanly.
-
-    Raised by the framework, after the step's (safe) outputs went out, when a
-    component has set its ``fault`` attribute (see :class:`Component`).
-    """
+from cosim.contract.errors import ComponentError, ComponentFault, InputEnded  # noqa: F401 (a component raises them)
+from cosim.contract.params import read_params
 
 
 @dataclass(frozen=True)
@@ -86,7 +70,7 @@ class Component:
 
         ``params`` holds the scenario's parameters for this component plus
         ``dt`` (the scenario step [s]), when ``uses_path`` is set ``path`` (a
-        :class:`cosim.scenario.paths.Path`), and when ``uses_run_dir`` is set ``run_dir``,
+        :class:`cosim.contract.paths.ReferencePath`), and when ``uses_run_dir`` is set ``run_dir``,
         ``recording_id`` and ``name``. ``rng`` is private to the component and seeded
         from the scenario seed and the component name.
         """
@@ -102,8 +86,6 @@ class Component:
         ``cosim validate`` and before any component is set up, so bad input fails before a run starts.
         Default: :attr:`params_spec` read as ``setup`` reads it, when set."""
         if cls.params_spec is not None:
-            from cosim.contract.params import read_params
-
             read_params(params, cls.params_spec)
 
     @classmethod

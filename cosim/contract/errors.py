@@ -20,3 +20,20 @@ class OutputWriteError(UserError):
 
         self.path, self.reason = Path(path), exc.strerror or str(exc)
         super().__init__(f"writing {path} failed: {self.reason}")
+
+
+class ComponentError(UserError):
+    """A component rejected its parameters or failed while stepping."""
+
+
+class InputEnded(Exception):
+    """Raised by a component's ``step`` when the recorded input it replays has run out: the run
+    ends there, as one that ran its duration does (status ``ok``), with the ticks before this one."""
+
+
+class ComponentFault(RuntimeError):
+    """A component detected an unsafe condition and asks the run to stop cleanly.
+
+    Raised by the framework, after the step's (safe) outputs went out, when a
+    component has set its ``fault`` attribute (see :class:`Component`).
+    """

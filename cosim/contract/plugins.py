@@ -101,6 +101,13 @@ def command_groups() -> list:
     return found
 
 
+def environment_keys() -> tuple[str, ...]:
+    """The environment variables plugins name as changing what a run does (hook ``cosim_register_environment``)."""
+    found: list[str] = []
+    get_plugin_manager().hook.cosim_register_environment(register=found.append)
+    return tuple(dict.fromkeys(found))
+
+
 def lookup(kind: str, name: str) -> Any:
     """One registered thing; an unknown name raises an error listing the known ones."""
     known = registry(kind)

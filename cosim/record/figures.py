@@ -19,7 +19,7 @@ HISTORY_S = 10.0
 
 
 class RunFigures:
-    """Accumulates the figures of one :class:`~cosim.record.recorder.TraceRecorder`'s run."""
+    """Accumulates the figures of one :class:`~cosim.runtime.recorder.TraceRecorder`'s run."""
 
     def __init__(self, recorder):
         has = {role: recorder.signal(role, 0, 0) is not None for role in

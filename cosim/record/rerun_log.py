@@ -7,7 +7,7 @@ in columns (``send_columns``) on the ``sim_time`` timeline, one call per
 entity and batch, not one per tick. The framework draws the path, the
 ``truth``, ``measured`` and ``estimate`` positions (3-vectors, in metres)
 under ``world/`` and the tracking error; the domain's views
-(:mod:`cosim.record.views`) draw the rest. Faults and stops are logged as
+(:mod:`cosim.contract.views`) draw the rest. Faults and stops are logged as
 text under ``events``. A component that logs something of its own (camera
 images) streams it to a part beside it (:func:`component_recording`) that
 joins it when the run ends (:func:`merge_parts`); the layout has the views it
@@ -182,7 +182,7 @@ def _is_position(values: np.ndarray | None) -> bool:
 class RecordingWriter:
     """The ``.rrd`` file of one run, appended batch by batch (see the module docstring).
 
-    ``recorder``: the :class:`~cosim.record.recorder.TraceRecorder`; ``views``: the domain's
+    ``recorder``: the :class:`~cosim.runtime.recorder.TraceRecorder`; ``views``: the domain's
     views that apply to the run; ``component_views``: the blueprint views components add.
     """
 

@@ -35,12 +35,30 @@ METRICS = ("tracking_error_mm", "estimation_error_mm", "prediction_error_mm", "s
 #: the other keys of a run's summary.json (see :mod:`cosim.runtime.runner`), which no component figure takes
 RUN_KEYS = ("scenario", "status", "error", "steps", "sim_time_s", "wall_time_s", "realtime_factor",
             "total_wall_time_s", "files", "realtime", "end")
+#: keys a run's summary.json may hold besides :data:`RUN_KEYS` that are not figures of the run
+BOOKKEEPING_KEYS = ("phase", "pid", "note", "security_events", "security_event_count", "security_log")
 
 
 def run_figures(recorder) -> dict[str, Any]:
-    """The metrics of one run, computed as it went by its :class:`~cosim.record.recorder.TraceRecorder`
+    """The metrics of one run, computed as it went by its :class:`~cosim.runtime.recorder.TraceRecorder`
     (see :mod:`cosim.record.figures`), then the components' own."""
     return recorder.figures.figures(METRICS, RUN_KEYS)
+
+
+def is_figure(value: Any) -> bool:
+    """Whether ``value`` is a numeric figure: a number, or a dict of such (None allowed among them)."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, (int, float)):
+        return True
+    return isinstance(value, dict) and bool(value) and all(v is None or is_figure(v) for v in value.values())
+
+
+def other_figures(summary: dict[str, Any]) -> dict[str, Any]:
+    """The numeric figures of a run's summary besides :data:`METRICS`: the components' own (e.g. a
+    controller's ``speed_error_rad_s``), in the summary's order."""
+    skip = {*METRICS, *RUN_KEYS, *BOOKKEEPING_KEYS}
+    return {k: v for k, v in summary.items() if k not in skip and v is not None and is_figure(v)}
 
 
 def _stats(values_mm: np.ndarray | None) -> dict | None:
@@ -110,17 +128,48 @@ ROW_KEYS = ("status", "dir", "error", "host", "code", "artifacts")
 
 
 def label_keys(rows: list[dict]) -> list[str]:
-    """The keys of a sweep's rows that label a run (not its metrics nor bookkeeping), in row order."""
-    return [k for k in rows[0] if k not in (*METRICS, *ROW_KEYS, "seeds")] if rows else []
+    """The keys of a sweep's rows that label a run, in row order: those before its first metric or
+    bookkeeping key (a row is ``{**labels, **metrics, status, ..., **other figures}``)."""
+    labels = []
+    for k in rows[0] if rows else ():
+        if k in METRICS or k in ROW_KEYS or k == "seeds":
+            break
+        labels.append(k)
+    return labels
+
+
+def row_figure_keys(rows: list[dict]) -> list[str]:
+    """The figures of a sweep's rows besides :data:`METRICS` (a component's own), in order of appearance."""
+    labels = set(label_keys(rows))
+    keys: dict[str, None] = {}
+    for r in rows:
+        keys.update((k, None) for k in r if k not in labels and k not in (*METRICS, *ROW_KEYS, "seeds"))
+    return list(keys)
+
+
+def _figure_column(key: str, rows: list[dict]) -> tuple[str, Any]:
+    """A table column of the figure ``key``: a number as it is, a dict's numbers joined by ``/``."""
+    parts = list(dict.fromkeys(k for r in rows if isinstance(r.get(key), dict) for k in r[key]))
+    if not parts:
+        return key, lambda r: _g(r.get(key))
+    return f"{key} {' / '.join(parts)}", lambda r: "/".join(_g((r.get(key) or {}).get(p)) for p in parts)
+
+
+def _g(value: Any) -> str:
+    if isinstance(value, dict) or value is None:
+        return "-"
+    return f"{value:.4g}"
 
 
 def sweep_table(rows: list[dict]) -> str:
-    """Markdown table: the labels, then every metric present in any row."""
+    """Markdown table: the labels, then every metric present in any row, then the components' figures."""
     if not rows:
         return ""
     labels = label_keys(rows)
-    cols = [("tracking error [mm]", lambda r: _pm(r.get("tracking_error_mm"))),
-            ("max [mm]", lambda r: _f(r.get("tracking_error_mm"), "max"))]
+    cols = []
+    if any(r.get("tracking_error_mm") for r in rows) or not row_figure_keys(rows):
+        cols += [("tracking error [mm]", lambda r: _pm(r.get("tracking_error_mm"))),
+                 ("max [mm]", lambda r: _f(r.get("tracking_error_mm"), "max"))]
     if any(r.get("estimation_error_mm") for r in rows):
         cols.append(("estimation error [mm]", lambda r: _pm(r.get("estimation_error_mm"))))
     if any(r.get("prediction_error_mm") for r in rows):
@@ -129,6 +178,7 @@ def sweep_table(rows: list[dict]) -> str:
     if any(r.get("solve_ms") for r in rows):
         cols.append(("solve median / p99 [ms]", lambda r: "/".join(
             _f(r.get("solve_ms"), k, 3) for k in ("median", "p99"))))
+    cols += [_figure_column(key, rows) for key in row_figure_keys(rows)]
     cols.append(("status", lambda r: r["status"]))
     lines = ["| " + " | ".join([*labels, *(c for c, _ in cols)]) + " |",
              "|" + "---|" * (len(labels) + len(cols))]
@@ -267,6 +317,8 @@ def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = Non
 
     files = []
     rows = pool_replicates(rows)
+    if not any(r.get("tracking_error_mm") for r in rows):  # nothing to plot (a system without a path)
+        return files
     for axis in numeric_axes(rows):
         others, groups = _groups(rows, axis)
         fig, ax = plt.subplots(figsize=(7, 4.5))

@@ -219,7 +219,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     ``expected``: the run's fingerprint: with another of its own the node refuses to join
     (exit status 2); ``tls``: this host's files for mutual TLS with the run's other machines;
     ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint);
-    ``rights``: with ``tls``, the run's per-component rights (:class:`cosim.scale.rights.Rights`), which this
+    ``rights``: with ``tls``, the run's per-component rights (:class:`cosim.runtime.rights.Rights`), which this
     node's session enforces on what its peers send it.
     """
     if cpus is not None:
@@ -230,7 +230,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     access = denials = None
     security = SecurityLog(run_dir, f"node {name}")
     if rights is not None:
-        from cosim.scale.rights import access_control
+        from cosim.runtime.rights import access_control
 
         access = access_control(run_id, wiring, rights)
         denials = ZenohDenials(security)  # what access control refuses here goes to the run's security.jsonl

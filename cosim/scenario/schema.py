@@ -20,7 +20,10 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from cosim.contract.errors import UserError
-from cosim.runtime.bus import RESERVED_NAMES
+from cosim.contract.views import view_roles
+
+#: Names no component may take: the bus keys its own messages under them (``cosim/<run>/alive``, ``.../ctl``).
+RESERVED_NAMES = ("alive", "ctl")
 
 
 class ScenarioError(UserError):
@@ -78,26 +81,25 @@ class RecordSpec(_Strict):
 
     ``truth`` is the tracking-error reference (its distance to the path);
     ``measured`` and ``estimate`` are what the sensor and the estimator made of
-    it. Any role may be null. The domain's views (hook ``cosim_register_views``)
-    read roles of their own, with defaults they give; a scenario binds them here
-    too, by the same ``role: component.port``.
+    it. Any role may be null. Their default ports are the domain's (hook
+    ``cosim_default_roles``; none: unbound). The domain's views (hook
+    ``cosim_register_views``) read roles of their own, with defaults they give;
+    a scenario binds them here too, by the same ``role: component.port``.
     """
 
     model_config = ConfigDict(extra="allow")
 
-    measured: str | None = "camera.position"
-    truth: str | None = "plant.position"
-    estimate: str | None = "estimator.position"
-    solve_time: str | None = "controller.solve_time"
+    measured: str | None = None
+    truth: str | None = None
+    estimate: str | None = None
+    solve_time: str | None = None
     #: Measurement minus the estimator's prediction at each frame (NaN between frames).
-    prediction_error: str | None = "estimator.innovation"
+    prediction_error: str | None = None
     #: When each measurement was captured [s] (a sensor that has no such port: at delivery).
-    capture_time: str | None = "camera.capture_time"
+    capture_time: str | None = None
 
     @model_validator(mode="after")
     def _known_roles(self):
-        from cosim.record.views import view_roles
-
         extra = set(self.model_extra or {})
         known = view_roles()
         unknown = sorted(extra - set(known))
@@ -110,10 +112,9 @@ class RecordSpec(_Strict):
         return self
 
     def ports(self) -> dict[str, str | None]:
-        """Every role's port: the views' defaults, then this scenario's bindings."""
-        from cosim.record.views import view_roles
-
-        return {**view_roles(), **self.model_dump()}
+        """Every role's port: the domain's defaults (:func:`cosim.contract.views.view_roles`), then
+        this scenario's bindings."""
+        return {**dict.fromkeys(type(self).model_fields), **view_roles(), **self.model_dump(exclude_unset=True)}
 
 
 class ReportSpec(_Strict):

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.record import recorder as recorder_module
+from cosim.api import RunRequest, run
 from cosim.record.streaming import QUANTILE_REL_ERROR, Moments, Quantiles
 from cosim.record.summary import METRICS, trace_figures
 from cosim.record.trace_files import ChunkedTrace, iter_trace, load_trace
-from cosim.runtime.runner import RunRequest, run
+from cosim.runtime import recorder as recorder_module
 from cosim.scenario.paths import make_path
 from cosim.scenario.schema import load_scenario
 
@@ -199,7 +199,7 @@ def test_replay_opens_the_parts_asked_for(tmp_path):
 
 @pytest.mark.parametrize("duration", ["3600", "604800", "null"])  # an hour, a week, until stopped
 def test_the_recorder_holds_one_chunk_whatever_the_duration(tmp_path, duration):
-    from cosim.record.recorder import CHUNK_BYTES, TraceRecorder
+    from cosim.runtime.recorder import CHUNK_BYTES, TraceRecorder
     from cosim.runtime.wiring import build_wiring
 
     scenario = load_scenario(TOY, [f"duration_s={duration}"])

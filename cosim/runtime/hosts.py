@@ -28,7 +28,7 @@ loopback. With TLS every component placed under ``components:`` has a
 certificate of its own (``cosim certs`` writes ``certs/lab.driver.pem`` and
 ``.key`` beside its host's ``certs/lab.pem``, named ``driver@lab``), and every
 process enforces each certificate's rights by its name
-(:mod:`cosim.scale.rights`): a component's own keys only. The components not
+(:mod:`cosim.runtime.rights`): a component's own keys only. The components not
 placed there run on the scheduler's machine under its certificate. Errors name
 the file, the field and its line.
 """

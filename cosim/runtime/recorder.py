@@ -7,7 +7,7 @@ batches: the log and the trace at least every ``FLUSH_EVERY_S`` of wall time
 and of simulated time, the recording every ``FLUSH_EVERY_S`` of wall time and
 whenever the chunk is full:
 
-* the files the domain's views write (:mod:`cosim.record.views`, e.g. a
+* the files the domain's views write (:mod:`cosim.contract.views`, e.g. a
   raw log in the domain's own format);
 * the trace: ``trace.chunks/`` while the run goes (a chunk file per full chunk
   plus the rows of the one under way, see :mod:`cosim.record.trace_files`),
@@ -111,8 +111,8 @@ class TraceRecorder:
         self._open_part()
 
     def _open_part(self) -> None:
+        from cosim.contract.views import registered_views
         from cosim.record import rerun_log
-        from cosim.record.views import registered_views
 
         folder = self.out_dir
         if self.part_ticks is not None:

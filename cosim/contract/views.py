@@ -19,6 +19,8 @@ from typing import Protocol
 
 import numpy as np
 
+from cosim.contract.plugins import get_plugin_manager, registry
+
 
 class RunFile(Protocol):
     """A file a view writes as the run goes."""
@@ -61,14 +63,14 @@ class RunView:
 
 def registered_views() -> dict[str, RunView]:
     """Every recording view the installed plugins register, by name."""
-    from cosim.contract.plugins import registry
-
     return registry("view")
 
 
 def view_roles() -> dict[str, str | None]:
-    """Every role a registered view reads, with its default port."""
+    """Every role's default port: those the domain gives the framework's roles (hook
+    ``cosim_default_roles``), then every role a registered view reads."""
     roles: dict[str, str | None] = {}
+    get_plugin_manager().hook.cosim_default_roles(register=roles.setdefault)
     for view in registered_views().values():
         for role, port in view.roles.items():
             roles.setdefault(role, port)
