@@ -14,7 +14,7 @@ import os
 import sys
 
 from cosim.cli import commands
-from cosim.contract.errors import UserError
+from cosim.contract.errors import RunError, UserError
 from cosim.contract.plugins import command_groups
 
 
@@ -65,8 +65,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _is_user_error(exc: Exception) -> bool:
-    """Errors caused by input (files, scenarios, plugins) print one line, not a traceback."""
-    return isinstance(exc, (UserError, FileNotFoundError))
+    """Errors of input (files, scenarios, plugins) and of a run that stopped print one line, not a traceback."""
+    return isinstance(exc, (UserError, RunError, FileNotFoundError))
 
 
 if __name__ == "__main__":

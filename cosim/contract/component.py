@@ -33,6 +33,7 @@ class Port:
     doc: str = ""
 
     def zeros(self) -> np.ndarray:
+        """An array of zeros of the port's shape."""
         return np.zeros(self.shape)
 
 
@@ -150,15 +151,15 @@ class Component:
         every run, also after a failure or a stop, before the recording is finished; may set
         ``fault``. It must be idempotent."""
 
-    # Optional: snapshot()/restore(state) for components that support rewinding.
-
 
 class SummaryAccumulator(Protocol):
     """Figures of a component's outputs computed batch by batch (see :meth:`Component.summary_accumulator`)."""
 
-    def add(self, outputs: Mapping[str, np.ndarray]) -> None: ...
+    def add(self, outputs: Mapping[str, np.ndarray]) -> None:
+        """Take one batch of the component's outputs, ``{port: array (n ticks, *shape)}``."""
 
-    def figures(self) -> dict[str, Any]: ...
+    def figures(self) -> dict[str, Any]:
+        """The figures of every batch taken, for the run's summary."""
 
 
 class KeepEveryBatch:
@@ -168,9 +169,11 @@ class KeepEveryBatch:
         self._figures_of, self._batches = summary_figures, []
 
     def add(self, outputs: Mapping[str, np.ndarray]) -> None:
+        """Keep a copy of the batch."""
         self._batches.append({k: np.array(v) for k, v in outputs.items()})
 
     def figures(self) -> dict[str, Any]:
+        """``summary_figures`` of the batches joined ({} when none)."""
         if not self._batches:
             return {}
         return self._figures_of({k: np.concatenate([b[k] for b in self._batches]) for k in self._batches[0]})

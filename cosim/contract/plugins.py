@@ -18,7 +18,7 @@ from typing import Any
 import pluggy
 
 from cosim.contract import hookspecs
-from cosim.contract.errors import UserError
+from cosim.contract.errors import PluginError
 
 #: The kinds of things the framework's own hooks provide, in the order ``cosim plugins`` lists
 #: them; kind ``K`` is provided by the hook ``cosim_register_Ks``, and a domain adds kinds with
@@ -29,10 +29,6 @@ KINDS = ("component", "path", "profile", "view", "scenario")
 USER_PLUGIN_PREFIX = "cosim_user_plugin_"
 
 _pm: pluggy.PluginManager | None = None
-
-
-class PluginError(UserError):
-    """A plugin could not be loaded, or registered something invalid."""
 
 
 def get_plugin_manager() -> pluggy.PluginManager:

@@ -30,7 +30,8 @@ class RunFile(Protocol):
     def append(self, recorder, start: int, stop: int) -> None:
         """Write ticks ``start:stop`` of the recorder (see :meth:`TraceRecorder.signal`)."""
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Flush and close the file."""
 
 
 class RunView:

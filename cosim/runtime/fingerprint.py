@@ -42,10 +42,12 @@ class Fingerprint:
     artifacts: str
 
     def as_dict(self) -> dict[str, str]:
+        """``{"scenario", "code", "artifacts"}``: the digests as a dict (a sweep row's, JSON)."""
         return asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict) -> "Fingerprint":
+        """The fingerprint of an :meth:`as_dict` dict (a missing part: empty)."""
         return cls(**{k: str(data.get(k, "")) for k in ("scenario", "code", "artifacts")})
 
     def encode(self) -> str:
@@ -54,6 +56,7 @@ class Fingerprint:
 
     @classmethod
     def decode(cls, text: str) -> "Fingerprint":
+        """The fingerprint of an :meth:`encode` token; ValueError for anything else."""
         parts = text.split(".")
         if len(parts) != 3 or not all(parts):
             raise ValueError(f"fingerprint {text!r}: expected SCENARIO.CODE.ARTIFACTS (three hex digests)")

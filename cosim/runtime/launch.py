@@ -26,9 +26,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from cosim.contract.errors import RunError
 from cosim.runtime.fingerprint import Fingerprint, differences
+from cosim.runtime.groups import RemoteGroup
 from cosim.runtime.hosts import HostsPlan
-from cosim.runtime.scheduler import RemoteGroup, RunError, StopRequest
+from cosim.runtime.scheduler import StopRequest
 
 #: How long nodes this machine starts itself have to be ready.
 NODE_START_TIMEOUT_S = 120.0

@@ -25,11 +25,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from cosim.contract.errors import OutputWriteError
+from cosim.contract.errors import OutputWriteError, RunError, RunFault, WriteError
 from cosim.record.rerun_log import merge_parts, set_aside_parts
 from cosim.record.summary import run_figures
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
+from cosim.runtime.groups import WINDOW, LocalGroup, RemoteGroup, with_close_faults
 from cosim.runtime.hosts import load_hosts
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
 from cosim.runtime.placement import node_cpus, threads_started_off
@@ -38,17 +39,7 @@ from cosim.runtime.private_bus import PrivateEndpoints
 from cosim.runtime.recorder import TraceRecorder
 from cosim.runtime.request import RunRequest
 from cosim.runtime.rights import access_control, format_rights, rights_of
-from cosim.runtime.scheduler import (
-    WINDOW,
-    LocalGroup,
-    RemoteGroup,
-    RunError,
-    RunFault,
-    Scheduler,
-    StopRequest,
-    WriteError,
-    with_close_faults,
-)
+from cosim.runtime.scheduler import Scheduler, StopRequest
 from cosim.runtime.security_log import FILE_NAME as SECURITY_FILE
 from cosim.runtime.security_log import SecurityLog, ZenohDenials
 from cosim.runtime.stepper import Stepper, setup_component

@@ -27,12 +27,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
 
+from cosim.contract.errors import RunError
 from cosim.contract.plugins import environment_keys, get_plugin_manager, plugin_file_sources
 from cosim.runtime.cache import CACHE_ENV
 from cosim.runtime.fingerprint import fingerprint, host_name
 from cosim.runtime.request import RunRequest
 from cosim.runtime.runner import run_one, stop_on_signals, write_json
-from cosim.runtime.scheduler import RunError
 from cosim.scenario.schema import load_scenario
 
 

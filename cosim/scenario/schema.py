@@ -19,15 +19,11 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from cosim.contract.errors import UserError
+from cosim.contract.errors import ScenarioError
 from cosim.contract.views import view_roles
 
 #: Names no component may take: the bus keys its own messages under them (``cosim/<run>/alive``, ``.../ctl``).
 RESERVED_NAMES = ("alive", "ctl")
-
-
-class ScenarioError(UserError):
-    """A scenario file or override is invalid; the message names the field and line."""
 
 
 class _Strict(BaseModel):
