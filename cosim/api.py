@@ -11,9 +11,11 @@ views, hooks) and calls the framework only through this module:
   processes several sweeps share), :func:`add_jobs_argument` / :func:`parse_jobs`
   (a command's ``--jobs``);
 * nodes: :func:`serve_node` (one component of a run in this process);
+* figures: :class:`Moments`, :class:`Quantiles` (statistics of a run's values
+  accumulated batch by batch, for a :class:`cosim.contract.figures.FigureSet`);
 * what a run left: :func:`load_trace`, :func:`iter_trace`; drawing into its
-  recording: :data:`TIMELINE`, :func:`log_scalars`, :func:`log_arrows`,
-  :func:`component_recording` (these four bring rerun, loaded on first use);
+  recording: :data:`TIMELINE`, :func:`log_scalars`, :func:`log_points`, :func:`log_arrows`,
+  :func:`component_recording` (these bring rerun, loaded on first use);
 * fingerprints and caches: :class:`Fingerprint`, :func:`fingerprint`,
   :func:`class_sources`, :func:`files_digest`, :func:`cache_dir`, :class:`CacheLock`.
 
@@ -30,11 +32,14 @@ from typing import Any, Sequence
 
 from cosim.contract.errors import UserError
 from cosim.contract.paths import ReferencePath
+from cosim.record.streaming import Moments, Quantiles
 from cosim.record.trace_files import iter_trace, load_trace
 from cosim.runtime.cache import CacheLock, cache_dir
+from cosim.runtime.check import check_runs
 from cosim.runtime.fingerprint import Fingerprint, class_sources, files_digest
 from cosim.runtime.fingerprint import fingerprint as _fingerprint
 from cosim.runtime.request import RunRequest
+from cosim.runtime.wiring import build_wiring
 from cosim.scale.options import SweepOptions, add_jobs_argument, parse_jobs
 from cosim.scenario.catalog import register_folder, resolve_scenario
 from cosim.scenario.paths import make_path
@@ -42,10 +47,11 @@ from cosim.scenario.schema import Scenario, load_document, profile_values
 from cosim.scenario.schema import load_scenario as _load_scenario
 
 #: Names that bring rerun, imported on first use (see :func:`__getattr__`).
-_RECORDING_NAMES = ("TIMELINE", "component_recording", "log_arrows", "log_scalars")
+_RECORDING_NAMES = ("TIMELINE", "component_recording", "log_arrows", "log_points", "log_scalars")
 
 __all__ = [
-    "CacheLock", "Fingerprint", "ReferencePath", "RunRequest", "Scenario", "SweepOptions", "add_jobs_argument",
+    "CacheLock", "Fingerprint", "Moments", "Quantiles", "ReferencePath", "RunRequest", "Scenario", "SweepOptions",
+    "add_jobs_argument",
     "cache_dir", "check_scenario", "class_sources", "component_classes", "files_digest", "fingerprint",
     "iter_trace", "load_document", "load_scenario", "load_trace", "make_path", "parse_jobs", "profile_values",
     "register_folder", "resolve_scenario", "run", "serve_node", "workers", *_RECORDING_NAMES,
@@ -71,16 +77,12 @@ def load_scenario(scenario: str | Path, overrides: Sequence[str] = ()) -> Scenar
 def check_scenario(scenario_file: str | Path, overrides: Sequence[str] = ()):
     """Check a scenario as ``cosim validate`` and ``cosim run`` do (fields, plugins, parameters, wiring,
     path; each run of a sweep); returns its :class:`~cosim.runtime.wiring.Wiring`."""
-    from cosim.runtime.check import check_runs
-
     scenario_file = resolve_scenario(str(scenario_file))
     return check_runs(_load_scenario(scenario_file, list(overrides)), scenario_file, list(overrides))
 
 
 def component_classes(scenario: Scenario) -> dict[str, type]:
     """The component class of each of ``scenario``'s components, by name (its wiring checked)."""
-    from cosim.runtime.wiring import build_wiring
-
     return dict(build_wiring(scenario).classes)
 
 
@@ -99,7 +101,6 @@ def run(request: RunRequest, sweep: SweepOptions | None = None) -> dict[str, Any
     run after its tick (``"status": "interrupted"``); a failing component raises
     :class:`~cosim.runtime.scheduler.RunError` once the outputs are written.
     """
-    from cosim.runtime.check import check_runs
     from cosim.runtime.runner import run_one, stop_on_signals
 
     scenario = _load_scenario(request.scenario_file, request.overrides)
@@ -134,7 +135,6 @@ def serve_node(scenario_file: str | Path, component: str, run_id: str, connect: 
     :class:`cosim.runtime.bus.TlsFiles`; ``rights``: the per-host rights of
     :func:`cosim.runtime.rights.parse_rights`."""
     from cosim.runtime.node import serve
-    from cosim.runtime.wiring import build_wiring
 
     scenario_file = resolve_scenario(str(scenario_file))
     scenario = _load_scenario(scenario_file, list(overrides))

@@ -86,6 +86,15 @@ def cosim_register_views(register):
 
 
 @hookspec
+def cosim_summary_figures(register):
+    """Provide figures of every run: call ``register(figure_set)`` with a
+    :class:`cosim.contract.figures.FigureSet` (its keys, its accumulator, its exact
+    computation from a trace, its sweep-table columns). Their keys follow the
+    framework's ``tracking_error_mm`` in ``summary.json`` and in a sweep's rows.
+    """
+
+
+@hookspec
 def cosim_default_roles(register):
     """Give the framework's recorded roles (``truth``, ``measured``, ``estimate``, ``solve_time``,
     ``prediction_error``, ``capture_time``; see :class:`cosim.scenario.schema.RecordSpec`) their

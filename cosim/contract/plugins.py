@@ -97,6 +97,13 @@ def command_groups() -> list:
     return found
 
 
+def figure_sets() -> list:
+    """The :class:`~cosim.contract.figures.FigureSet` objects plugins provide (hook ``cosim_summary_figures``)."""
+    found: list = []
+    get_plugin_manager().hook.cosim_summary_figures(register=found.append)
+    return found
+
+
 def environment_keys() -> tuple[str, ...]:
     """The environment variables plugins name as changing what a run does (hook ``cosim_register_environment``)."""
     found: list[str] = []

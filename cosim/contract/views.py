@@ -1,9 +1,9 @@
 """Recording views: what a domain draws of a run and writes beside its trace.
 
 The framework records every port of every component (``trace.npz``) and draws
-what it knows of any controlled system: the reference path, the ``truth``,
-``measured`` and ``estimate`` positions when they are 3-vectors, and the
-tracking error (see :mod:`cosim.record.rerun_log`). A domain adds the rest
+what it knows of any controlled system: the reference path and the tracking
+error (see :mod:`cosim.record.rerun_log`). A domain adds the rest (its 3D
+world, e.g. the ``truth``, ``measured`` and ``estimate`` positions)
 with a :class:`RunView`, registered through the ``cosim_register_views``
 hook: the roles it reads (so a scenario's ``record:`` may bind them), rerun
 views and what it draws into them batch by batch, and files it writes as the
@@ -42,6 +42,8 @@ class RunView:
     roles: dict[str, str | None] = {}
     #: ``{key: file name}`` of the files it writes (the keys of summary.json's ``files``)
     files: dict[str, str] = {}
+    #: it draws into the 3D view (entities under ``world/``, where the framework draws the path)
+    spatial: bool = False
 
     def applies(self, recorder) -> bool:
         """Whether the run has what this view shows: by default, every role it reads is recorded."""

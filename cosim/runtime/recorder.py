@@ -36,6 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from cosim.contract.errors import OutputWriteError
+from cosim.contract.views import registered_views
+from cosim.record import rerun_log
+from cosim.record.figures import RunFigures
 from cosim.record.trace_files import CURRENT, ChunkedTrace, iter_trace, load_trace  # noqa: F401 (the readers live there)
 from cosim.runtime.portcache import port_slots
 from cosim.runtime.wiring import Wiring
@@ -101,8 +104,6 @@ class TraceRecorder:
         self._files: dict = {}  # the views' files, by key
         self._file_ticks: dict = {}  # ticks written to each of the files, by key
         self._joining: list[threading.Thread] = []  # the parts' traces being joined into trace.npz
-        from cosim.record.figures import RunFigures
-
         self.figures = RunFigures(self)
 
     def open(self) -> None:
@@ -111,9 +112,6 @@ class TraceRecorder:
         self._open_part()
 
     def _open_part(self) -> None:
-        from cosim.contract.views import registered_views
-        from cosim.record import rerun_log
-
         folder = self.out_dir
         if self.part_ticks is not None:
             folder = self.out_dir / PART_DIR.format(len(self.parts))

@@ -29,6 +29,7 @@ from typing import Any, Iterator
 
 from cosim.contract.errors import RunError
 from cosim.contract.plugins import environment_keys, get_plugin_manager, plugin_file_sources
+from cosim.record.summary import metric_keys
 from cosim.runtime.cache import CACHE_ENV
 from cosim.runtime.fingerprint import fingerprint, host_name
 from cosim.runtime.request import RunRequest
@@ -203,9 +204,7 @@ def _watch_stop_event(name: str, stop) -> threading.Event:
 
 def failed_summary(error: str) -> dict[str, Any]:
     """The summary of a run that produced none: failed, with ``error``, no figures."""
-    from cosim.record.summary import METRICS
-
-    return {"status": "failed", "error": error, **dict.fromkeys(METRICS)}
+    return {"status": "failed", "error": error, **dict.fromkeys(metric_keys())}
 
 
 def pack(folder: Path) -> bytes:

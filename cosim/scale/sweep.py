@@ -32,8 +32,8 @@ from typing import Any, Iterable, Sequence
 from cosim.contract.errors import UserError
 from cosim.contract.plugins import lookup
 from cosim.record.summary import (
-    METRICS,
     largest_below,
+    metric_keys,
     monotonic_within_spread,
     numeric_axes,
     other_figures,
@@ -217,7 +217,7 @@ class SweepRecord:
     def add(self, job: Job, result: dict[str, Any]) -> dict:
         summary, made_by = result["summary"], result.get("fingerprint") or {}
         mark_own(Path(job.run_dir))  # again: a run shipped back from a worker replaced the folder
-        row = {**job.labels, **{k: summary[k] for k in METRICS if summary.get(k) is not None},
+        row = {**job.labels, **{k: summary[k] for k in metric_keys() if summary.get(k) is not None},
                "status": summary["status"], "dir": str(Path(job.run_dir).relative_to(self.out))}
         if summary["status"] != "ok":
             row["error"] = summary.get("error")

@@ -20,6 +20,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from cosim.contract.errors import ScenarioError
+from cosim.contract.params import IDEAL
+from cosim.contract.plugins import load_plugin_file, registry
 from cosim.contract.views import view_roles
 
 #: Names no component may take: the bus keys its own messages under them (``cosim/<run>/alive``, ``.../ctl``).
@@ -298,9 +300,6 @@ def apply_profile(data: dict, name: Any, source: str = "<scenario>",
 def profile_values(name: Any, source: str = "<scenario>") -> dict:
     """The values profile ``name`` sets, ``{plugin name: {param: value}}`` (``ideal``, unless a plugin
     registers it: none); an unknown profile raises :class:`ScenarioError` naming ``source``."""
-    from cosim.contract.params import IDEAL
-    from cosim.contract.plugins import registry
-
     profiles = registry("profile")
     if name == "ideal" and name not in profiles:
         return IDEAL
@@ -312,8 +311,6 @@ def profile_values(name: Any, source: str = "<scenario>") -> dict:
 def load_scenario_plugins(files: list, base_dir: Path) -> None:
     """Register a scenario's own plugin ``files`` (paths relative to ``base_dir``; what is not a
     string is left to the scenario's validation to report)."""
-    from cosim.contract.plugins import load_plugin_file
-
     for item in files:
         if not isinstance(item, str):
             continue

@@ -11,8 +11,8 @@ import pytest
 import cosim
 from cosim import api
 
-CONTRACT = ("cosim.contract.component", "cosim.contract.errors", "cosim.contract.params", "cosim.contract.paths",
-            "cosim.contract.plugins", "cosim.contract.views", "cosim.contract.hookspecs")
+CONTRACT = ("cosim.contract.component", "cosim.contract.errors", "cosim.contract.figures", "cosim.contract.params",
+            "cosim.contract.paths", "cosim.contract.plugins", "cosim.contract.views", "cosim.contract.hookspecs")
 
 
 def public_objects():
