@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 from cosim.runtime.stepper import setup_component
 from cosim.runtime.wiring import build_wiring
 from cosim.scenario.schema import load_scenario

@@ -31,7 +31,7 @@ HIDDEN = ["components.plant.params.background_flow_on=true", "components.plant.p
 
 def make_logs(cache: Path) -> tuple[list[Path], float]:
     """Five 60 s logs (two sweeps of the scenario with different seeds), cached."""
-    from cosim.runtime.runner import RunRequest, run
+    from cosim.api import RunRequest, run
 
     t0 = time.perf_counter()
     files: list[Path] = []

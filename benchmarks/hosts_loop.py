@@ -22,7 +22,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 from cosim.scale.certs import make_certificates
 from cosim_plugins.resources import SCENARIOS_DIR
 

@@ -33,7 +33,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 from cosim_plugins.resources import SCENARIOS_DIR
 
 SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
@@ -63,7 +63,10 @@ def measure(processes: bool, sim_s: float, repeats: int, node_cpus: str = "auto"
 
 def one_run(tree: Path, processes: bool, sim_s: float) -> float:
     """The real-time factor of one run of the code in ``tree`` (its own ``cosim``), in a fresh process."""
-    code = ("import sys, tempfile; from pathlib import Path; from cosim.runtime.runner import RunRequest, run; "
+    code = ("import sys, tempfile; from pathlib import Path\n"
+            "try:\n    from cosim.api import RunRequest, run\n"
+            "except ImportError:  # a checkout from before cosim.api\n"
+            "    from cosim.runtime.runner import RunRequest, run\n"
             "from cosim_plugins.resources import SCENARIOS_DIR\n"
             "with tempfile.TemporaryDirectory() as out:\n"
             f"    s = run(RunRequest(SCENARIOS_DIR / 'racetrack.yaml', Path(out), ['duration_s={sim_s}'], {processes}, "

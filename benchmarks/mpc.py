@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 from cosim_plugins.resources import SCENARIOS_DIR
 
 SCENARIO = SCENARIOS_DIR / "controllers_racetrack.yaml"

@@ -17,7 +17,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 from cosim_plugins.resources import SCENARIOS_DIR
 
 SCENARIO = SCENARIOS_DIR / "racetrack.yaml"

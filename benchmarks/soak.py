@@ -31,7 +31,7 @@ SCENARIO = SCENARIOS_DIR / "racetrack.yaml"
 
 def child(hours: float, processes: bool, out: Path, rotate_h: float | None) -> None:
     """Run one case here and print what it took (in the child process)."""
-    from cosim.runtime.runner import RunRequest, run
+    from cosim.api import RunRequest, run
 
     summary = run(RunRequest(SCENARIO, out, [f"duration_s={hours * 3600.0}"], processes, progress=False,
                              rotate_s=None if rotate_h is None else rotate_h * 3600.0))

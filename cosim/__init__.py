@@ -5,10 +5,13 @@ domain (a plant, its sensors, controllers and analyses) is a package of
 plugins registered through pluggy hooks (see :mod:`cosim.contract`). Its
 rooms: :mod:`cosim.contract` (what a plugin implements), :mod:`cosim.scenario`
 (what a run is), :mod:`cosim.runtime` (the path of a tick), :mod:`cosim.record`
-(what a run leaves behind), :mod:`cosim.scale` (many runs, many machines),
-:mod:`cosim.components` (components any domain can use) and :mod:`cosim.cli`.
+(what a run leaves behind), :mod:`cosim.scale` (many runs at once),
+:mod:`cosim.components` (components any domain can use), :mod:`cosim.api`
+(what a domain or a script calls: load, check, run, sweep, serve a node,
+fingerprints and caches) and :mod:`cosim.cli`, each importing only those
+before it.
 
-The names below are the public API a plugin imports; ``FmuComponent`` and
+The names below are the contract a plugin implements; ``FmuComponent`` and
 ``component_recording`` are loaded on first use (they bring fmpy and rerun).
 """
 

@@ -13,8 +13,8 @@ from importlib.resources import files
 from pathlib import Path
 
 from cosim import hookimpl
+from cosim.api import register_folder
 from cosim.contract.errors import UserError
-from cosim.scenario.catalog import register_folder
 
 #: Sub-folder of the user cache dir this project writes to.
 CACHE_NAME = "cosim-swimmer"

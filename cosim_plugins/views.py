@@ -1,10 +1,11 @@
 """The swimmer's view of a run: the tank, the swimmer's axis and the field in 3D, the
 command and the coil currents over time, and the raw log ``log.csv``.
 
-Registered through ``cosim_register_views`` (see :mod:`cosim.record.views`);
+Registered through ``cosim_register_views`` (see :mod:`cosim.contract.views`);
 it applies to a run that records the command (role ``omega``) and the
-measured position, as every swimmer scenario does. The framework draws the
-path and the true, measured and estimated positions itself.
+measured position, as every swimmer scenario does. :class:`PositionsView`
+draws the true, measured and estimated positions in 3D (the framework draws
+the path).
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from cosim import hookimpl
-from cosim.record.rerun_log import log_arrows, log_scalars
-from cosim.record.views import RunView
+from cosim.api import log_arrows, log_points, log_scalars
+from cosim.contract.views import RunView
+from cosim_plugins.figures import SwimmerFigures
 from cosim_plugins.raw_log import LogWriter
 
 TANK_HALF_M = 0.075
@@ -27,6 +29,39 @@ ARROWS = (
     ("world/swimmer/axis", "axis", [40, 200, 80], AXIS_LEN_M),
     ("world/field", "field", [230, 80, 230], FIELD_SCALE_M_PER_T),
 )
+
+
+#: the positions drawn in 3D: (entity, recorded role, colour, point radius [m])
+POINTS = (
+    ("world/truth", "truth", [40, 200, 80], 1.25e-3),
+    ("world/measured", "measured", [255, 80, 60], 0.8e-3),
+    ("world/estimate", "estimate", [60, 140, 255], 0.8e-3),
+)
+
+
+def _is_position(values) -> bool:
+    return values is not None and values.shape[1:] == (3,)
+
+
+class PositionsView(RunView):
+    """The true, measured and estimated positions as points in 3D, those of them recorded as 3-vectors."""
+
+    spatial = True
+
+    def applies(self, recorder) -> bool:
+        return any(_is_position(recorder.signal(role, 0, 0)) for _, role, _, _ in POINTS)
+
+    def start(self, rec, recorder) -> None:
+        for entity, role, color, radius in self._points(recorder):
+            rec.log(entity, rr.Points3D.from_fields(colors=[color], radii=[radius]), static=True)
+
+    def draw(self, rec, recorder, start, stop, t_s) -> None:
+        for entity, role, _, _ in self._points(recorder):
+            log_points(rec, entity, t_s, recorder.signal(role, start, stop))
+
+    @staticmethod
+    def _points(recorder) -> list:
+        return [pt for pt in POINTS if _is_position(recorder.signal(pt[1], 0, 0))]
 
 
 class RawLogFile:
@@ -83,6 +118,29 @@ class SwimmerView(RunView):
         return {"log": RawLogFile(out_dir / self.files["log"])}
 
 
+#: The swimmer's ports of the framework's recorded roles (a scenario's ``record:`` rebinds them).
+DEFAULT_ROLES = {
+    "measured": "camera.position",
+    "truth": "plant.position",
+    "estimate": "estimator.position",
+    "solve_time": "controller.solve_time",
+    "prediction_error": "estimator.innovation",
+    "capture_time": "camera.capture_time",
+}
+
+
+@hookimpl
+def cosim_summary_figures(register):
+    register(SwimmerFigures())
+
+
+@hookimpl
+def cosim_default_roles(register):
+    for role, port in DEFAULT_ROLES.items():
+        register(role, port)
+
+
 @hookimpl
 def cosim_register_views(register):
+    register("positions", PositionsView())
     register("swimmer", SwimmerView())

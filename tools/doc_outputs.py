@@ -203,8 +203,8 @@ BLOCKS: dict[str, Block] = {
                            depends=("cosim/runtime", "cosim/cli", "cosim_plugins/scenarios/racetrack.yaml")),
     "rotate": Block(("cosim run racetrack --set duration_s=120 --rotate 0.01 --out runs/rotated",)),
     "rotate-parts": Block(
-        ("python -c 'from cosim.record.recorder import load_trace; print(load_trace(\"runs/rotated\")[\"t_s\"].shape)'",
-         "python -c 'from cosim.record.recorder import iter_trace; "
+        ("python -c 'from cosim.api import load_trace; print(load_trace(\"runs/rotated\")[\"t_s\"].shape)'",
+         "python -c 'from cosim.api import iter_trace; "
          "print([len(p[\"t_s\"]) for p in iter_trace(\"runs/rotated\", [\"plant.position\"])])'"),
         after="rotate"),
     "hosts-plain-tcp": Block(

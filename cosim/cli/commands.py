@@ -11,8 +11,18 @@ import sys
 import textwrap
 from pathlib import Path
 
+from cosim import api
 from cosim.contract.errors import UserError
-from cosim.scenario.catalog import resolve_scenario
+from cosim.contract.params import IDEAL
+from cosim.contract.plugins import kinds, registry
+from cosim.runtime.check import check_runs
+from cosim.runtime.wiring import connection_table
+from cosim.scale.options import add_jobs_argument, parse_jobs
+from cosim.scenario.catalog import resolve_scenario, shipped_scenarios
+from cosim.scenario.schema import json_schema, load_scenario, sweep_overrides
+
+# The bus (zenoh), the web viewer and the certificates' tools are imported by the commands that use
+# them, so `cosim scenarios` or `cosim plugins` does not load them.
 
 SCENARIO_HELP = "a scenario YAML file, or the name of a shipped one (see `cosim scenarios`), e.g. racetrack"
 
@@ -107,7 +117,7 @@ def add_commands(sub) -> None:
     p.add_argument("--tls-cert", type=Path, default=None, metavar="PEM", help="this host's certificate")
     p.add_argument("--tls-key", type=Path, default=None, metavar="PEM", help="this host's private key")
     p.add_argument("--rights", default=None, metavar="SCHED;HOST=COMP,...",
-                   help="with TLS: the components each host runs, by its certificate's name (cosim.scale.rights); "
+                   help="with TLS: the components each host runs, by its certificate's name (cosim.runtime.rights); "
                         "what a peer may publish and subscribe to here")
     p.set_defaults(func=cmd_node)
 
@@ -121,15 +131,12 @@ def add_commands(sub) -> None:
 
 def cmd_run(args) -> int:
     """``cosim run``: run a scenario or its sweep; 1 when a sweep run failed, 130 when stopped."""
-    from cosim.runtime.runner import RunRequest, run
-    from cosim.scenario.schema import load_scenario
-
     args.scenario = resolve_scenario(args.scenario)
     if args.until_stopped:
         args.overrides = [*args.overrides, "duration_s=null"]
     if args.rotate is not None and not args.rotate > 0:
         raise UserError(f"--rotate {args.rotate:g}: the hours per part must be > 0")
-    out = args.out or Path("runs") / load_scenario(args.scenario, args.overrides).name
+    out = args.out or Path("runs") / api.load_scenario(args.scenario, args.overrides).name
     if args.realtime is not None and not args.realtime > 0:
         raise UserError(f"--realtime {args.realtime:g}: the factor must be > 0 (1: real time)")
     if args.node_cpus is not None and not args.processes:
@@ -153,11 +160,12 @@ def cmd_run(args) -> int:
                         "over machines takes its certificates from its hosts file)")
     from cosim.runtime.bus import TlsFiles
 
-    summary = run(RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
-                             args.node_cpus or "auto", args.realtime, jobs=jobs, executor=args.executor,
-                             run_timeout_s=args.run_timeout, hosts=args.hosts,
-                             executor_tls=TlsFiles(*tls_args) if all(tls_args) else None,
-                             rotate_s=None if args.rotate is None else args.rotate * 3600.0))
+    request = api.RunRequest(args.scenario, out, args.overrides, args.processes, not args.quiet,
+                             args.node_cpus or "auto", args.realtime, hosts=args.hosts,
+                             rotate_s=None if args.rotate is None else args.rotate * 3600.0)
+    sweep = api.SweepOptions(jobs=jobs, executor=args.executor, run_timeout_s=args.run_timeout,
+                             executor_tls=TlsFiles(*tls_args) if all(tls_args) else None)
+    summary = api.run(request, sweep)
     if not args.quiet:
         _print_run(summary, out)
     if summary.get("status") == "interrupted":
@@ -169,22 +177,6 @@ def cmd_run(args) -> int:
         print(f"cosim run: {len(failed)} of {len(summary['sweep'])} sweep runs did not finish: "
               + ", ".join(f"{row['dir']} ({row['status']})" for row in failed), file=sys.stderr)
     return 1 if failed else 0
-
-
-def add_jobs_argument(parser, what: str) -> None:
-    """Add ``--jobs N|auto`` to ``parser``; ``what`` says what runs that many at a time."""
-    parser.add_argument("--jobs", default=None, metavar="N|auto",
-                        help=f"{what} (auto: one per CPU this process may use; default 1)")
-
-
-def parse_jobs(text: str | None, default: int | str = 1) -> int:
-    """``--jobs``: a whole number >= 1, or ``auto`` (the CPUs this process may use)."""
-    text = str(default) if text is None else text
-    if text == "auto":
-        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    if not text.isdigit() or int(text) < 1:
-        raise UserError(f"--jobs {text}: expected a whole number >= 1 or auto")
-    return int(text)
 
 
 def _print_run(summary: dict, out: Path) -> None:
@@ -209,25 +201,17 @@ def _print_run(summary: dict, out: Path) -> None:
 
 def cmd_validate(args) -> int:
     """``cosim validate``: check a scenario as a run would and print its wiring."""
-    from cosim.runtime.wiring import connection_table
-    from cosim.scenario.check import check_runs
-    from cosim.scenario.schema import load_scenario
-
     args.scenario = resolve_scenario(args.scenario)
     scenario = load_scenario(args.scenario, args.overrides)
     wiring = check_runs(scenario, args.scenario, args.overrides)  # what `cosim run` checks before it starts
     print(connection_table(scenario, wiring))
     if scenario.sweep:
-        from cosim.scenario.schema import sweep_overrides
-
         print(f"sweep: {len(sweep_overrides(scenario))} runs over {', '.join(scenario.sweep)}")
     return 0
 
 
 def cmd_scenarios(args) -> int:
     """``cosim scenarios``: the shipped scenarios, one line each with its description."""
-    from cosim.scenario.catalog import shipped_scenarios
-
     found = shipped_scenarios()
     if not found:
         print("no installed package ships scenarios")
@@ -246,17 +230,12 @@ def _common_folder(found: dict) -> str:
 
 def cmd_schema(args) -> int:
     """``cosim schema``: the scenario format's JSON Schema on stdout."""
-    from cosim.scenario.schema import json_schema
-
     print(json.dumps(json_schema(), indent=2))
     return 0
 
 
 def cmd_plugins(args) -> int:
     """``cosim plugins``: what the installed plugins register, by kind, each with its first sentence."""
-    from cosim.contract.params import IDEAL
-    from cosim.contract.plugins import kinds, registry
-
     for kind in kinds():
         entries = registry(kind)
         if kind == "profile":
@@ -328,32 +307,21 @@ def _call_viewer(command: list[str], env: dict | None = None) -> int:
 
 def cmd_node(args) -> int:
     """``cosim node``: serve one component of a scenario in this process until the run ends."""
-    from cosim.runtime.bus import TlsFiles
-    from cosim.runtime.fingerprint import Fingerprint
-    from cosim.runtime.node import serve
-    from cosim.runtime.wiring import build_wiring
-    from cosim.scenario.schema import load_scenario
-
-    args.scenario = resolve_scenario(args.scenario)
-    scenario = load_scenario(args.scenario, args.overrides)
-    if args.component not in scenario.components:
-        raise UserError(f"no component {args.component!r} in {args.scenario} "
-                        f"(have: {', '.join(scenario.components)})")
     tls_args = (args.tls_ca, args.tls_cert, args.tls_key)
     if any(tls_args) and not all(tls_args):
         raise UserError("--tls-ca, --tls-cert and --tls-key go together (mutual TLS needs all three)")
     try:
-        expected = Fingerprint.decode(args.fingerprint) if args.fingerprint else None
+        expected = api.Fingerprint.decode(args.fingerprint) if args.fingerprint else None
     except ValueError as exc:
         raise UserError(f"--fingerprint: {exc}") from None
-    from cosim.scale.rights import parse_rights
+    from cosim.runtime.bus import TlsFiles
+    from cosim.runtime.rights import parse_rights
 
     rights = parse_rights(args.rights) if args.rights else None
     if rights is not None and not all(tls_args):
         raise UserError("--rights applies to TLS links: give --tls-ca, --tls-cert and --tls-key too")
-    return serve(scenario, build_wiring(scenario), args.component, args.run_id, args.connect, args.listen,
-                 args.cpus, args.run_dir, expected, TlsFiles(*tls_args) if all(tls_args) else None,
-                 args.scenario, rights)
+    return api.serve_node(args.scenario, args.component, args.run_id, args.connect, args.listen, args.overrides,
+                          args.cpus, args.run_dir, expected, TlsFiles(*tls_args) if all(tls_args) else None, rights)
 
 
 def cmd_certs(args) -> int:

@@ -10,14 +10,12 @@ analyses, e.g. ``cosim diagnose``, ``cosim camera``).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from cosim.cli import commands
+from cosim.contract.errors import RunError, UserError
 from cosim.contract.plugins import command_groups
-
-
-class CLIError(Exception):
-    """An error to print as one line and exit with status 2."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,8 +48,6 @@ def main(argv: list[str] | None = None) -> int:
         raise
     args = parser.parse_args(argv)
     if getattr(args, "trust_model_code", False):
-        import os
-
         os.environ["COSIM_TRUST_MODEL_CODE"] = "1"  # the processes this command starts inherit it
     try:
         return int(args.func(args) or 0)
@@ -69,10 +65,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _is_user_error(exc: Exception) -> bool:
-    """Errors caused by input (files, scenarios, plugins) print one line, not a traceback."""
-    from cosim.contract.errors import UserError
-
-    return isinstance(exc, (CLIError, UserError, FileNotFoundError))
+    """Errors of input (files, scenarios, plugins) and of a run that stopped print one line, not a traceback."""
+    return isinstance(exc, (UserError, RunError, FileNotFoundError))
 
 
 if __name__ == "__main__":

@@ -81,6 +81,7 @@ class FmuComponent(Component):
 
     @classmethod
     def artifacts(cls, params: Mapping[str, Any]) -> list:
+        """The FMU file: its content is part of a run's fingerprint."""
         return [cls.fmu_file(params)]
 
     @classmethod
@@ -113,6 +114,7 @@ class FmuComponent(Component):
 
     # ------------------------------------------------------------ setup
     def setup(self, params: Mapping[str, Any], rng: np.random.Generator) -> None:
+        """Instantiate the FMU of ``params`` with the parameters mapped onto its variables, up to t = 0."""
         fmu_path = self.fmu_file(params)
         md, variables, values = self._checked_values(params, fmu_path)
 
@@ -174,9 +176,11 @@ class FmuComponent(Component):
 
     # ------------------------------------------------------------- stepping
     def initial_outputs(self) -> dict[str, np.ndarray]:
+        """The FMU's outputs at t = 0, as its ports."""
         return {k: v.copy() for k, v in self._last.items()}
 
     def step(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Set the inputs, integrate the FMU from its last time to ``t`` [s] and return its outputs."""
         t = float(t)
         if t > self._t:
             buf = self._in_np
@@ -211,6 +215,7 @@ class FmuComponent(Component):
             self._fmu.freeFMUstate(state)
 
     def restore(self, snap: tuple[float, bytes]) -> None:
+        """Return the FMU to a :meth:`snapshot` (its time, state and outputs)."""
         t, data = snap
         state = self._fmu.deSerializeFMUstate(data)
         try:
@@ -226,6 +231,7 @@ class FmuComponent(Component):
         return [message for _, message in self._log]
 
     def close(self) -> None:
+        """Terminate and free the FMU instance (idempotent)."""
         if self._fmu is not None:
             fmu, self._fmu = self._fmu, None
             try:

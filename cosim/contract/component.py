@@ -14,24 +14,8 @@ from typing import Any, Mapping, Protocol
 
 import numpy as np
 
-from cosim.contract.errors import UserError
-
-
-class ComponentError(UserError):
-    """A component rejected its parameters or failed while stepping."""
-
-
-class InputEnded(Exception):
-    """Raised by a component's ``step`` when the recorded input it replays has run out: the run
-    ends there, as one that ran its duration does (status ``ok``), with the ticks before this one."""
-
-
-class ComponentFault(RuntimeError):
-    """A component detected an unsafe condition and asks the run to stop cleanly.
-
-    Raised by the framework, after the step's (safe) outputs went out, when a
-    component has set its ``fault`` attribute (see :class:`Component`).
-    """
+from cosim.contract.errors import ComponentError, ComponentFault, InputEnded  # noqa: F401 (a component raises them)
+from cosim.contract.params import read_params
 
 
 @dataclass(frozen=True)
@@ -49,6 +33,7 @@ class Port:
     doc: str = ""
 
     def zeros(self) -> np.ndarray:
+        """An array of zeros of the port's shape."""
         return np.zeros(self.shape)
 
 
@@ -86,7 +71,7 @@ class Component:
 
         ``params`` holds the scenario's parameters for this component plus
         ``dt`` (the scenario step [s]), when ``uses_path`` is set ``path`` (a
-        :class:`cosim.scenario.paths.Path`), and when ``uses_run_dir`` is set ``run_dir``,
+        :class:`cosim.contract.paths.ReferencePath`), and when ``uses_run_dir`` is set ``run_dir``,
         ``recording_id`` and ``name``. ``rng`` is private to the component and seeded
         from the scenario seed and the component name.
         """
@@ -102,8 +87,6 @@ class Component:
         ``cosim validate`` and before any component is set up, so bad input fails before a run starts.
         Default: :attr:`params_spec` read as ``setup`` reads it, when set."""
         if cls.params_spec is not None:
-            from cosim.contract.params import read_params
-
             read_params(params, cls.params_spec)
 
     @classmethod
@@ -168,15 +151,15 @@ class Component:
         every run, also after a failure or a stop, before the recording is finished; may set
         ``fault``. It must be idempotent."""
 
-    # Optional: snapshot()/restore(state) for components that support rewinding.
-
 
 class SummaryAccumulator(Protocol):
     """Figures of a component's outputs computed batch by batch (see :meth:`Component.summary_accumulator`)."""
 
-    def add(self, outputs: Mapping[str, np.ndarray]) -> None: ...
+    def add(self, outputs: Mapping[str, np.ndarray]) -> None:
+        """Take one batch of the component's outputs, ``{port: array (n ticks, *shape)}``."""
 
-    def figures(self) -> dict[str, Any]: ...
+    def figures(self) -> dict[str, Any]:
+        """The figures of every batch taken, for the run's summary."""
 
 
 class KeepEveryBatch:
@@ -186,9 +169,11 @@ class KeepEveryBatch:
         self._figures_of, self._batches = summary_figures, []
 
     def add(self, outputs: Mapping[str, np.ndarray]) -> None:
+        """Keep a copy of the batch."""
         self._batches.append({k: np.array(v) for k, v in outputs.items()})
 
     def figures(self) -> dict[str, Any]:
+        """``summary_figures`` of the batches joined ({} when none)."""
         if not self._batches:
             return {}
         return self._figures_of({k: np.concatenate([b[k] for b in self._batches]) for k in self._batches[0]})

@@ -47,9 +47,9 @@ def cosim_register_components(register):
 def cosim_register_paths(register):
     """Provide reference paths.
 
-    Call ``register(name, factory)`` where ``factory(**params)`` returns an
-    object with ``sample(s_m) -> (n, 3) positions [m]`` over arc length and
-    ``length_m``; see :mod:`cosim.scenario.paths`.
+    Call ``register(name, factory)`` where ``factory(**params)`` returns a
+    :class:`cosim.contract.paths.ReferencePath`: ``points(t_s) -> (n, 3)``
+    positions [m] of its polyline at time ``t_s``, and ``length_m``.
     """
 
 
@@ -80,8 +80,38 @@ def cosim_register_views(register):
     """Provide recording views: what a domain draws of a run and the files it writes beside the trace.
 
     Call ``register(name, view)`` with an object following
-    :class:`cosim.record.views.RunView`: the roles it reads (with their default
+    :class:`cosim.contract.views.RunView`: the roles it reads (with their default
     ports), its rerun views and drawing, and its files written as the run goes.
+    """
+
+
+@hookspec
+def cosim_summary_figures(register):
+    """Provide figures of every run: call ``register(figure_set)`` with a
+    :class:`cosim.contract.figures.FigureSet` (its keys, its accumulator, its exact
+    computation from a trace, its sweep-table columns). Their keys follow the
+    framework's ``tracking_error_mm`` in ``summary.json`` and in a sweep's rows.
+    """
+
+
+@hookspec
+def cosim_default_roles(register):
+    """Give the framework's recorded roles (``truth``, ``measured``, ``estimate``, ``solve_time``,
+    ``prediction_error``, ``capture_time``; see :class:`cosim.scenario.schema.RecordSpec`) their
+    default ports in this domain.
+
+    Call ``register(role, "component.port")`` for each; the first registration of a role wins and
+    a scenario's ``record:`` overrides it. A role no plugin gives is unbound unless the scenario binds it.
+    """
+
+
+@hookspec
+def cosim_register_environment(register):
+    """Name the environment variables that change what a run of the plugin's components does.
+
+    Call ``register(name)`` for each (e.g. a domain's dataset size or the file of a prebuilt
+    model): a sweep's jobs carry the client's values of them, and of the framework's own
+    ``COSIM_CACHE``, to the workers that run them (see :mod:`cosim.scale.jobs`).
     """
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from cosim.contract.component import ComponentError
+from cosim.contract.errors import ComponentError
 
 #: Parameters every component receives from the scheduler.
 CONTEXT_KEYS = ("dt", "path", "run_dir", "recording_id", "name")

@@ -18,7 +18,7 @@ from typing import Any
 import pluggy
 
 from cosim.contract import hookspecs
-from cosim.contract.errors import UserError
+from cosim.contract.errors import PluginError
 
 #: The kinds of things the framework's own hooks provide, in the order ``cosim plugins`` lists
 #: them; kind ``K`` is provided by the hook ``cosim_register_Ks``, and a domain adds kinds with
@@ -29,10 +29,6 @@ KINDS = ("component", "path", "profile", "view", "scenario")
 USER_PLUGIN_PREFIX = "cosim_user_plugin_"
 
 _pm: pluggy.PluginManager | None = None
-
-
-class PluginError(UserError):
-    """A plugin could not be loaded, or registered something invalid."""
 
 
 def get_plugin_manager() -> pluggy.PluginManager:
@@ -99,6 +95,20 @@ def command_groups() -> list:
     found: list = []
     get_plugin_manager().hook.cosim_register_commands(register=found.append)
     return found
+
+
+def figure_sets() -> list:
+    """The :class:`~cosim.contract.figures.FigureSet` objects plugins provide (hook ``cosim_summary_figures``)."""
+    found: list = []
+    get_plugin_manager().hook.cosim_summary_figures(register=found.append)
+    return found
+
+
+def environment_keys() -> tuple[str, ...]:
+    """The environment variables plugins name as changing what a run does (hook ``cosim_register_environment``)."""
+    found: list[str] = []
+    get_plugin_manager().hook.cosim_register_environment(register=found.append)
+    return tuple(dict.fromkeys(found))
 
 
 def lookup(kind: str, name: str) -> Any:

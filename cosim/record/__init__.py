@@ -1,11 +1,12 @@
-"""Recording: what a run leaves behind, written as it goes so no stop loses it.
+"""Recording: what a run leaves behind, and the figures made of it.
 
-:mod:`~cosim.record.recorder` holds the ports' values of the ticks not yet
-written out (one chunk at most, whatever the run's length) and streams the
-trace (:mod:`~cosim.record.trace_files`), the files domain views write (see
-:mod:`~cosim.record.views`) and the rerun recording
-(:mod:`~cosim.record.rerun_log`) to the run's folder in batches;
+:mod:`~cosim.record.trace_files` writes and reads the trace in chunks (so no
+stop loses it), :mod:`~cosim.record.rerun_log` the rerun recording (the
+domain's views, :mod:`cosim.contract.views`, draw into it);
 :mod:`~cosim.record.figures` computes the run's figures as it goes
 (:mod:`~cosim.record.streaming`); :mod:`~cosim.record.summary` says what they
-are and makes a sweep's table, plot and pooled curves.
+are and makes a sweep's table, plot and pooled curves;
+:mod:`~cosim.record.web_viewer` serves a recording to a browser. The
+recorder that feeds them tick by tick is the runtime's
+(:mod:`cosim.runtime.recorder`).
 """

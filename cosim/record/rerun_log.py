@@ -7,7 +7,7 @@ in columns (``send_columns``) on the ``sim_time`` timeline, one call per
 entity and batch, not one per tick. The framework draws the path, the
 ``truth``, ``measured`` and ``estimate`` positions (3-vectors, in metres)
 under ``world/`` and the tracking error; the domain's views
-(:mod:`cosim.record.views`) draw the rest. Faults and stops are logged as
+(:mod:`cosim.contract.views`) draw the rest. Faults and stops are logged as
 text under ``events``. A component that logs something of its own (camera
 images) streams it to a part beside it (:func:`component_recording`) that
 joins it when the run ends (:func:`merge_parts`); the layout has the views it
@@ -167,38 +167,24 @@ def log_scalars(rec, entity: str, t_s: np.ndarray, values: np.ndarray) -> None:
         rec.send_columns(entity, indexes=_time(t_s[keep]), columns=rr.Scalars.columns(scalars=values[keep]))
 
 
-#: the framework's points: (entity, recorded role, colour, point radius [m])
-POINTS = (
-    ("world/truth", "truth", [40, 200, 80], 1.25e-3),
-    ("world/measured", "measured", [255, 80, 60], 0.8e-3),
-    ("world/estimate", "estimate", [60, 140, 255], 0.8e-3),
-)
-
-
-def _is_position(values: np.ndarray | None) -> bool:
-    return values is not None and values.shape[1:] == (3,)
-
-
 class RecordingWriter:
     """The ``.rrd`` file of one run, appended batch by batch (see the module docstring).
 
-    ``recorder``: the :class:`~cosim.record.recorder.TraceRecorder`; ``views``: the domain's
+    ``recorder``: the :class:`~cosim.runtime.recorder.TraceRecorder`; ``views``: the domain's
     views that apply to the run; ``component_views``: the blueprint views components add.
     """
 
     def __init__(self, out_path: Path, recorder, views: list | tuple = (), component_views: list | tuple = ()):
         self.recorder, self.views, self.path = recorder, list(views), recorder.path
-        self._points = [pt for pt in POINTS if _is_position(recorder.signal(pt[1], 0, 0))]
         plots = [rrb.TimeSeriesView(origin="plots/tracking_error_mm", name="tracking error [mm]")] \
             if recorder.tracks_path else []
         plots += [v for view in self.views for v in view.layout()]
         self.rec = rec = rr.RecordingStream(application_id=APPLICATION_ID,
                                             recording_id=recorder.scenario.recording_id)
-        save(rec, Path(out_path), blueprint(bool(self._points), plots, component_views))
+        spatial = any(view.spatial for view in self.views)  # a view draws into the 3D world
+        save(rec, Path(out_path), blueprint(spatial, plots, component_views))
         if self.path is not None and not self.path.time_varying:
             rec.log("world/path", rr.LineStrips3D([self.path.points(0.0)], colors=[[255, 200, 0]]), static=True)
-        for entity, _, color, radius in self._points:
-            rec.log(entity, rr.Points3D.from_fields(colors=[color], radii=[radius]), static=True)
         for view in self.views:
             view.start(rec, recorder)
         rec.flush()
@@ -209,8 +195,6 @@ class RecordingWriter:
         rec, recorder = self.rec, self.recorder
         t_s = recorder.t_s[start:stop]
         log_path(rec, self.path, t_s, np.arange(start, stop), recorder.scenario.dt_s)
-        for entity, role, _, _ in self._points:
-            log_points(rec, entity, t_s, recorder.signal(role, start, stop))
         if tracking_error_m is not None:
             log_scalars(rec, "plots/tracking_error_mm", t_s, tracking_error_m * 1e3)
         for view in self.views:

@@ -66,6 +66,7 @@ class Quantiles:
         self.n, self.min, self.max, self.what = 0, math.inf, -math.inf, what
 
     def add(self, values: np.ndarray) -> None:
+        """Count the finite ``values`` (any shape) into the histogram."""
         v = np.asarray(values, dtype=float).ravel()
         v = v[np.isfinite(v)]
         if not len(v):

@@ -1,21 +1,10 @@
 """Figures of a run and of a sweep: summary.json content, the sweep table and plot.
 
-Run figures (all in mm or ms):
-
-* ``tracking_error_mm``: distance of the true position to the path, {mean, std, max};
-* ``estimation_error_mm``: distance of the estimate to the true position, {mean, std, max};
-* ``prediction_error_mm``: per-axis mean absolute and Euclidean RMS of the
-  estimator's innovation (measurement minus prediction at each frame),
-  {x, y, z, rmse};
-* ``solve_ms``: the controller's computation per step, {median, p99};
-* ``detection_error_mm``: distance of each measurement to the true position
-  at its capture time (the ``capture_time`` role; a camera without one is
-  taken to deliver at capture), {median, p99}.
-
-They are computed as the run goes (:mod:`cosim.record.figures`): the means,
-spreads and maxima equal the whole run's up to rounding, the medians and
-p99 are within a relative 5e-4 of ``np.percentile``'s
-(:mod:`cosim.record.streaming`); :func:`trace_figures` computes them exactly
+Run figures: the framework's ``tracking_error_mm`` (distance of the ``truth``
+role to the reference path, {mean, std, max} [mm]), then those of the domain's
+figure sets (hook ``cosim_summary_figures``, see :mod:`cosim.contract.figures`;
+:func:`metric_keys` lists them all). They are computed as the run goes
+(:mod:`cosim.record.figures`); :func:`trace_figures` computes them exactly
 from a whole trace.
 
 Components add figures of their own from their recorded outputs
@@ -31,16 +20,44 @@ from typing import Any
 
 import numpy as np
 
-METRICS = ("tracking_error_mm", "estimation_error_mm", "prediction_error_mm", "solve_ms", "detection_error_mm")
+from cosim.contract.plugins import figure_sets
+from cosim.scenario.paths import distance_to_path
+
+#: the framework's own figure of a run with a path
+TRACKING = "tracking_error_mm"
 #: the other keys of a run's summary.json (see :mod:`cosim.runtime.runner`), which no component figure takes
 RUN_KEYS = ("scenario", "status", "error", "steps", "sim_time_s", "wall_time_s", "realtime_factor",
             "total_wall_time_s", "files", "realtime", "end")
+#: keys a run's summary.json may hold besides :data:`RUN_KEYS` that are not figures of the run
+BOOKKEEPING_KEYS = ("phase", "pid", "note", "security_events", "security_event_count", "security_log")
 
 
 def run_figures(recorder) -> dict[str, Any]:
-    """The metrics of one run, computed as it went by its :class:`~cosim.record.recorder.TraceRecorder`
+    """The figures of one run, computed as it went by its :class:`~cosim.runtime.recorder.TraceRecorder`
     (see :mod:`cosim.record.figures`), then the components' own."""
-    return recorder.figures.figures(METRICS, RUN_KEYS)
+    return recorder.figures.figures(metric_keys(), RUN_KEYS)
+
+
+def metric_keys() -> tuple[str, ...]:
+    """The keys every run's summary has (None when the run has none of that figure): the tracking
+    error, then the figure sets' keys."""
+    return tuple(dict.fromkeys((TRACKING, *(k for figure_set in figure_sets() for k in figure_set.keys))))
+
+
+def is_figure(value: Any) -> bool:
+    """Whether ``value`` is a numeric figure: a number, or a dict of such (None allowed among them)."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, (int, float)):
+        return True
+    return isinstance(value, dict) and bool(value) and all(v is None or is_figure(v) for v in value.values())
+
+
+def other_figures(summary: dict[str, Any]) -> dict[str, Any]:
+    """The numeric figures of a run's summary besides :data:`METRICS`: the components' own (e.g. a
+    controller's ``speed_error_rad_s``), in the summary's order."""
+    skip = {*metric_keys(), *RUN_KEYS, *BOOKKEEPING_KEYS}
+    return {k: v for k, v in summary.items() if k not in skip and v is not None and is_figure(v)}
 
 
 def _stats(values_mm: np.ndarray | None) -> dict | None:
@@ -52,57 +69,20 @@ def _stats(values_mm: np.ndarray | None) -> dict | None:
     return {"mean": float(np.mean(v)), "std": float(np.std(v)), "max": float(np.max(v))}
 
 
-def _quantiles(values: np.ndarray) -> dict | None:
-    """{median, p99} of the finite ``values``, None if there is none."""
-    v = values[np.isfinite(values)]
-    if not len(v):
-        return None
-    return {"median": float(np.median(v)), "p99": float(np.percentile(v, 99))}
-
-
 def trace_figures(trace: dict[str, np.ndarray], roles: dict[str, str | None], path=None) -> dict[str, Any]:
-    """The framework's metrics computed exactly from a whole trace (:func:`~cosim.record.trace_files.load_trace`),
+    """The run's figures computed exactly from a whole trace (:func:`~cosim.record.trace_files.load_trace`),
     ``roles`` as ``scenario.record.ports()``, ``path`` the run's path: the reference the figures
     computed as a run goes are checked against (memory: the whole trace)."""
     def get(role):
         return trace.get(roles.get(role) or "")
 
-    out: dict[str, Any] = {k: None for k in METRICS}
-    truth, estimate, t_s = get("truth"), get("estimate"), trace["t_s"]
+    out: dict[str, Any] = dict.fromkeys(metric_keys())
+    truth, t_s = get("truth"), trace["t_s"]
     if path is not None and truth is not None and truth.shape[1:] == (3,):
-        from cosim.scenario.paths import distance_to_path
-
-        out["tracking_error_mm"] = _stats(distance_to_path(path, truth, t_s) * 1e3)
-    if truth is not None and estimate is not None:
-        out["estimation_error_mm"] = _stats(np.linalg.norm(estimate - truth, axis=1) * 1e3)
-    innov = get("prediction_error")
-    if innov is not None:
-        rows = innov[np.all(np.isfinite(innov), axis=1)] * 1e3
-        if len(rows):
-            mae = np.abs(rows).mean(axis=0)
-            out["prediction_error_mm"] = {"x": float(mae[0]), "y": float(mae[1]), "z": float(mae[2]),
-                                          "rmse": float(np.sqrt((rows**2).sum(axis=1).mean())), "frames": len(rows)}
-    if get("solve_time") is not None:
-        out["solve_ms"] = _quantiles(get("solve_time") * 1e3)
-    if get("measured") is not None and truth is not None:
-        error_m = detection_error_m(get("measured"), truth, t_s, get("capture_time"))
-        out["detection_error_mm"] = _quantiles(error_m * 1e3)
+        out[TRACKING] = _stats(distance_to_path(path, truth, t_s) * 1e3)
+    for figure_set in figure_sets():
+        out.update(figure_set.exact(get, t_s))
     return out
-
-
-def detection_error_m(measured_m: np.ndarray, truth_m: np.ndarray, t_s: np.ndarray,
-                      capture_time_s: np.ndarray | None = None) -> np.ndarray:
-    """Distance [m] of each measurement (n, 3) to the truth (n, 3) at its capture time.
-
-    ``t_s`` (n,): the rows' times; ``capture_time_s`` (n,): when each row's
-    measurement was captured (NaN or absent: at the row's own time); the
-    truth is interpolated linearly between rows. NaN where no measurement.
-    """
-    if not len(t_s):  # a run stopped before its first step
-        return np.zeros(0)
-    at = t_s if capture_time_s is None else np.where(np.isfinite(capture_time_s), capture_time_s, t_s)
-    truth_at = np.stack([np.interp(at, t_s, truth_m[:, i]) for i in range(3)], axis=1)
-    return np.linalg.norm(measured_m - truth_at, axis=1)
 
 
 #: the keys of a sweep row that are not labels: what the run gave, and where and by what it was made
@@ -110,25 +90,53 @@ ROW_KEYS = ("status", "dir", "error", "host", "code", "artifacts")
 
 
 def label_keys(rows: list[dict]) -> list[str]:
-    """The keys of a sweep's rows that label a run (not its metrics nor bookkeeping), in row order."""
-    return [k for k in rows[0] if k not in (*METRICS, *ROW_KEYS, "seeds")] if rows else []
+    """The keys of a sweep's rows that label a run, in row order: those before its first metric or
+    bookkeeping key (a row is ``{**labels, **metrics, status, ..., **other figures}``)."""
+    labels = []
+    metrics = metric_keys()
+    for k in rows[0] if rows else ():
+        if k in metrics or k in ROW_KEYS or k == "seeds":
+            break
+        labels.append(k)
+    return labels
+
+
+def row_figure_keys(rows: list[dict]) -> list[str]:
+    """The figures of a sweep's rows besides :data:`METRICS` (a component's own), in order of appearance."""
+    labels = set(label_keys(rows))
+    keys: dict[str, None] = {}
+    for r in rows:
+        keys.update((k, None) for k in r if k not in labels and k not in (*metric_keys(), *ROW_KEYS, "seeds"))
+    return list(keys)
+
+
+def _figure_column(key: str, rows: list[dict]) -> tuple[str, Any]:
+    """A table column of the figure ``key``: a number as it is, a dict's numbers joined by ``/``."""
+    parts = list(dict.fromkeys(k for r in rows if isinstance(r.get(key), dict) for k in r[key]))
+    if not parts:
+        return key, lambda r: _g(r.get(key))
+    return f"{key} {' / '.join(parts)}", lambda r: "/".join(_g((r.get(key) or {}).get(p)) for p in parts)
+
+
+def _g(value: Any) -> str:
+    if isinstance(value, dict) or value is None:
+        return "-"
+    return f"{value:.4g}"
 
 
 def sweep_table(rows: list[dict]) -> str:
-    """Markdown table: the labels, then every metric present in any row."""
+    """Markdown table: the labels, the tracking error, the figure sets' columns, then the other
+    figures (the components' own)."""
     if not rows:
         return ""
     labels = label_keys(rows)
-    cols = [("tracking error [mm]", lambda r: _pm(r.get("tracking_error_mm"))),
-            ("max [mm]", lambda r: _f(r.get("tracking_error_mm"), "max"))]
-    if any(r.get("estimation_error_mm") for r in rows):
-        cols.append(("estimation error [mm]", lambda r: _pm(r.get("estimation_error_mm"))))
-    if any(r.get("prediction_error_mm") for r in rows):
-        cols.append(("prediction x / y / z / RMSE [mm]", lambda r: "/".join(
-            _f(r.get("prediction_error_mm"), k) for k in ("x", "y", "z", "rmse"))))
-    if any(r.get("solve_ms") for r in rows):
-        cols.append(("solve median / p99 [ms]", lambda r: "/".join(
-            _f(r.get("solve_ms"), k, 3) for k in ("median", "p99"))))
+    cols = []
+    if any(r.get("tracking_error_mm") for r in rows) or not row_figure_keys(rows):
+        cols += [("tracking error [mm]", lambda r: _pm(r.get("tracking_error_mm"))),
+                 ("max [mm]", lambda r: _f(r.get("tracking_error_mm"), "max"))]
+    for figure_set in figure_sets():
+        cols += figure_set.columns(rows)
+    cols += [_figure_column(key, rows) for key in row_figure_keys(rows)]
     cols.append(("status", lambda r: r["status"]))
     lines = ["| " + " | ".join([*labels, *(c for c, _ in cols)]) + " |",
              "|" + "---|" * (len(labels) + len(cols))]
@@ -267,6 +275,8 @@ def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = Non
 
     files = []
     rows = pool_replicates(rows)
+    if not any(r.get("tracking_error_mm") for r in rows):  # nothing to plot (a system without a path)
+        return files
     for axis in numeric_axes(rows):
         others, groups = _groups(rows, axis)
         fig, ax = plt.subplots(figsize=(7, 4.5))

@@ -30,6 +30,8 @@ from typing import Iterator
 
 import numpy as np
 
+from cosim.contract.errors import UserError
+
 CHUNKS_DIR = "trace.chunks"
 INDEX = "index.json"
 CURRENT = "current.part"
@@ -112,7 +114,6 @@ def _raw(values: np.ndarray) -> memoryview:
 
 
 def _layout_error(run_dir: Path):
-    from cosim.contract.errors import UserError
 
     return UserError(f"run {run_dir}: no trace.npz (nor a trace.chunks/ or trace.part of a run going or cut short)")
 

@@ -36,7 +36,6 @@ import zenoh
 from cosim.contract.errors import UserError
 
 ROOT = "cosim"
-RESERVED_NAMES = ("alive", "ctl")
 
 #: zenoh's retry of a link that is not up yet (default: from 1 s up to 4 s between tries)
 CONNECT_RETRY = {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2}
@@ -114,7 +113,7 @@ def open_session(listen: list[str] | None = None, connect: list[str] | None = No
     step someone waits for. With ``tls`` (a run over machines, ``tls/``
     endpoints) every link is mutual TLS with the run's certificates: a peer
     without a certificate of the run's CA can neither connect nor publish. ``access``: zenoh's
-    ``access_control`` section (:func:`cosim.scale.rights.access_control`): what each peer, known by
+    ``access_control`` section (:func:`cosim.runtime.rights.access_control`): what each peer, known by
     its certificate's name, may publish and subscribe to here.
     """
     conf = zenoh.Config()

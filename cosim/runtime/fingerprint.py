@@ -21,12 +21,14 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import inspect
 import json
 import socket
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from cosim.contract.plugins import USER_PLUGIN_PREFIX, get_plugin_manager, lookup, plugin_file_sources
 from cosim.scenario.schema import Scenario
 
 DIGEST_CHARS = 16
@@ -40,10 +42,12 @@ class Fingerprint:
     artifacts: str
 
     def as_dict(self) -> dict[str, str]:
+        """``{"scenario", "code", "artifacts"}``: the digests as a dict (a sweep row's, JSON)."""
         return asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict) -> "Fingerprint":
+        """The fingerprint of an :meth:`as_dict` dict (a missing part: empty)."""
         return cls(**{k: str(data.get(k, "")) for k in ("scenario", "code", "artifacts")})
 
     def encode(self) -> str:
@@ -52,6 +56,7 @@ class Fingerprint:
 
     @classmethod
     def decode(cls, text: str) -> "Fingerprint":
+        """The fingerprint of an :meth:`encode` token; ValueError for anything else."""
         parts = text.split(".")
         if len(parts) != 3 or not all(parts):
             raise ValueError(f"fingerprint {text!r}: expected SCENARIO.CODE.ARTIFACTS (three hex digests)")
@@ -85,7 +90,6 @@ def code_digest(plugin_files: list[Path] = ()) -> str:
     scenario's own) with the Python files beside each (the modules such a file imports from its
     folder). Plugin files this process loaded for other scenarios do not count."""
     import cosim
-    from cosim.contract.plugins import USER_PLUGIN_PREFIX, get_plugin_manager, plugin_file_sources
 
     files: dict[str, Path] = dict(_source_files(cosim))
     pm = get_plugin_manager()
@@ -111,8 +115,6 @@ def _cached_code_digest(files: tuple[tuple[str, str], ...]) -> str:
 
 def artifact_files(scenario: Scenario) -> list[Path]:
     """The files besides code the scenario's components name (see ``Component.artifacts``)."""
-    from cosim.contract.plugins import lookup
-
     files: list[Path] = []
     for name, spec in scenario.components.items():
         cls = lookup("component", spec.plugin)
@@ -150,6 +152,27 @@ def differences(mine: Fingerprint, theirs: Fingerprint) -> list[str]:
              "artifacts": "the files besides code (the plant's FMU, model files)"}
     return [f"{words[k]} ({getattr(mine, k)} here, {getattr(theirs, k)} there)"
             for k in ("scenario", "code", "artifacts") if getattr(mine, k) != getattr(theirs, k)]
+
+
+def class_sources(cls: type, prefixes: tuple[str, ...]) -> set[str]:
+    """The file defining ``cls`` and the files of the modules it imports names from whose module
+    names start with one of ``prefixes`` (a domain's own, e.g. ``("mydomain.",)``): the code a cache
+    entry made with ``cls`` depends on."""
+    module = sys.modules[cls.__module__]
+    files = {module.__file__}
+    for value in vars(module).values():
+        owner = inspect.getmodule(value)
+        if owner is not None and owner.__name__.startswith(prefixes) and getattr(owner, "__file__", None):
+            files.add(owner.__file__)
+    return files
+
+
+def files_digest(files) -> str:
+    """Digest of the contents of ``files`` (paths), taken in sorted order: a cache key."""
+    h = hashlib.sha256()
+    for file in sorted(map(str, files)):
+        h.update(Path(file).read_bytes())
+    return h.hexdigest()
 
 
 def host_name() -> str:

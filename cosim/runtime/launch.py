@@ -26,9 +26,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from cosim.contract.errors import RunError
 from cosim.runtime.fingerprint import Fingerprint, differences
-from cosim.runtime.scheduler import RemoteGroup, RunError, StopRequest
-from cosim.scale.hosts import HostsPlan
+from cosim.runtime.groups import RemoteGroup
+from cosim.runtime.hosts import HostsPlan
+from cosim.runtime.scheduler import StopRequest
 
 #: How long nodes this machine starts itself have to be ready.
 NODE_START_TIMEOUT_S = 120.0
@@ -60,7 +62,7 @@ def node_commands(scenario_file: Path, overrides: list[str], order: list[str], r
     """A command per component in ``order``: without ``hosts``, every node on this machine listening on
     ``free_endpoint(name)`` (a unix socket of the run's private folder) and running on ``cpus``; with
     them, as placed there (a node started here without CPUs of its own runs on ``cpus``); ``rights``:
-    the run's per-component rights (:mod:`cosim.scale.rights`), given to every node that links with TLS."""
+    the run's per-component rights (:mod:`cosim.runtime.rights`), given to every node that links with TLS."""
     commands, earlier = [], [scheduler]
     for name in order:
         place = hosts.nodes[name] if hosts else None

@@ -42,9 +42,10 @@ import zenoh
 from cosim.contract.component import ComponentFault, InputEnded
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import Fingerprint, differences, fingerprint
+from cosim.runtime.groups import REPLY_BATCH, WINDOW
 from cosim.runtime.placement import parse_cpu_list, pin_this_process
 from cosim.runtime.portcache import PortStore
-from cosim.runtime.scheduler import REPLY_BATCH, WINDOW
+from cosim.runtime.rights import access_control
 from cosim.runtime.security_log import SecurityLog, ZenohDenials
 from cosim.runtime.stepper import Stepper, setup_component
 from cosim.runtime.wiring import Wiring
@@ -219,7 +220,7 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     ``expected``: the run's fingerprint: with another of its own the node refuses to join
     (exit status 2); ``tls``: this host's files for mutual TLS with the run's other machines;
     ``scenario_file``: where the scenario was read (its plugin files count in the fingerprint);
-    ``rights``: with ``tls``, the run's per-component rights (:class:`cosim.scale.rights.Rights`), which this
+    ``rights``: with ``tls``, the run's per-component rights (:class:`cosim.runtime.rights.Rights`), which this
     node's session enforces on what its peers send it.
     """
     if cpus is not None:
@@ -230,8 +231,6 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
     access = denials = None
     security = SecurityLog(run_dir, f"node {name}")
     if rights is not None:
-        from cosim.scale.rights import access_control
-
         access = access_control(run_id, wiring, rights)
         denials = ZenohDenials(security)  # what access control refuses here goes to the run's security.jsonl
     try:
@@ -242,36 +241,38 @@ def serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: l
             denials.close()
 
 
-def _serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str], listen: list[str],
-           cpus: str | None, run_dir: Path | None, expected: Fingerprint | None, tls: bus.TlsFiles | None,
-           access: dict | None, security: SecurityLog, mine: Fingerprint) -> int:
-    """:func:`serve` once its security log is set up (``access``: zenoh's access control, or None)."""
-    session = bus.open_session(listen=listen, connect=connect, tls=tls, access=access)
-    reply_pub = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
-    edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
+class _SchedulerLink:
+    """This node's replies to the scheduler (``cosim/RUN/ctl/NAME/reply``)."""
 
-    def reply(tick: int, phase: str | None = None, error: str | None = None, values=(), **extra) -> None:
-        msg = {"name": name, "tick": tick, "phase": phase, "ok": error is None, **extra}
+    def __init__(self, session: zenoh.Session, run_id: str, name: str):
+        self.name = name
+        self.publisher = bus.publisher(session, bus.ctl_key(run_id, name, "reply"))
+
+    def reply(self, tick: int, phase: str | None = None, error: str | None = None, values=(), **extra) -> None:
+        """Send one reply: ``tick``'s ``phase`` ("ready", "closed", ...), ok unless ``error``."""
+        msg = {"name": self.name, "tick": tick, "phase": phase, "ok": error is None, **extra}
         if error:
             msg["error"] = error
         payload, attachment = bus.encode_reply(msg, values)
-        reply_pub.put(payload, attachment=attachment)
+        self.publisher.put(payload, attachment=attachment)
 
-    # the scheduler's reply subscriber may not be known here yet (a link to another machine, with its TLS
-    # handshake, can take longer than setting up): a reply sent before would be lost
-    def route_to_scheduler(timeout_s: float) -> bool:
-        return bool(bus.poll(lambda: reply_pub.matching_status.matching or None, timeout_s))
+    def routed(self, timeout_s: float) -> bool:
+        """Whether the scheduler's reply subscriber is known here within ``timeout_s`` [s]: a link to
+        another machine, with its TLS handshake, can take longer than setting up, and a reply sent
+        before would be lost."""
+        return bool(bus.poll(lambda: self.publisher.matching_status.matching or None, timeout_s))
 
+
+def _serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: list[str], listen: list[str],
+           cpus: str | None, run_dir: Path | None, expected: Fingerprint | None, tls: bus.TlsFiles | None,
+           access: dict | None, security: SecurityLog, mine: Fingerprint) -> int:
+    """:func:`serve` once its security log is set up (``access``: zenoh's access control, or None): join
+    (or refuse to), set up, subscribe, step until stopped, close."""
+    session = bus.open_session(listen=listen, connect=connect, tls=tls, access=access)
+    link = _SchedulerLink(session, run_id, name)
     if expected is not None and mine != expected:
-        why = "; ".join(differences(mine, expected))
-        print(f"cosim node {name}: refusing to join run {run_id}: this node runs another experiment: {why}",
-              file=sys.stderr)
-        route_to_scheduler(REFUSAL_WAIT_S)
-        reply(-1, "ready", f"refused to join: its node runs another experiment than the run's: {why}")
-        time.sleep(0.5)  # let the reply leave before the session closes
-        session.close()
-        return 2
-    if not route_to_scheduler(ROUTE_WAIT_S):  # the scheduler is gone (or was never there)
+        return _refuse(session, link, run_id, "; ".join(differences(mine, expected)))
+    if not link.routed(ROUTE_WAIT_S):  # the scheduler is gone (or was never there)
         print(f"cosim node {name}: no scheduler of run {run_id} reachable at {', '.join(connect)} within "
               f"{ROUTE_WAIT_S:g} s; exiting", file=sys.stderr)
         session.close()
@@ -281,20 +282,52 @@ def _serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: 
         if cpus is not None:  # the threads started from here on (subscribers') inherit it
             pin_this_process(cpus)
     except Exception as exc:  # reported to the scheduler, which names us
-        reply(-1, "ready", f"set-up failed: {exc}")
+        link.reply(-1, "ready", f"set-up failed: {exc}")
         session.close()
         return 1
+    edges = [(e.src, e.src_port, wiring.periods[e.src], e.delay) for e in wiring.edges_into(name)]
     timeout_s = scenario.components[name].timeout_s or scenario.timeout_s
     producers = {src: wiring.outputs[src] for src, _, _, _ in edges}
     store = PortStore(producers, keep=WINDOW + 1 + max(wiring.max_delay(name), 1))
     stepper = Stepper(name, component, session, run_id, wiring, store, timeout_s)
-    node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, reply, security, run_id)
+    node = _Node(stepper, store, edges, wiring.periods[name], scenario.dt_s, link.reply, security, run_id)
+    gone: list[str] = []  # why the node stops on its own
+    subs = _subscribe(session, run_id, name, node, producers, gone)
+    token = session.liveliness().declare_token(bus.alive_key(run_id, name))
+    _stop_on_signals(node, gone)
+    link.reply(-1, "ready", fingerprint=mine.as_dict())
+    try:
+        return _wait_until_stopped(node, name, gone)
+    finally:
+        node.stopped.set()
+        for sub in subs:
+            sub.undeclare()
+        if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
+            link.reply(-1, "closed", close_fault=stepper.close(), security_events=security.count)
+        token.undeclare()  # after the reply: the scheduler waits for it while the node lives
+        session.close()
+
+
+def _refuse(session: zenoh.Session, link: _SchedulerLink, run_id: str, why: str) -> int:
+    """Tell the scheduler this node runs another experiment (``why``: the differing fingerprint parts);
+    exit status 2."""
+    print(f"cosim node {link.name}: refusing to join run {run_id}: this node runs another experiment: {why}",
+          file=sys.stderr)
+    link.routed(REFUSAL_WAIT_S)
+    link.reply(-1, "ready", f"refused to join: its node runs another experiment than the run's: {why}")
+    time.sleep(0.5)  # let the reply leave before the session closes
+    session.close()
+    return 2
+
+
+def _subscribe(session: zenoh.Session, run_id: str, name: str, node: "_Node", producers: dict,
+               gone: list[str]) -> list:
+    """The node's subscribers: its producers' outputs, the ticks granted, its commands, and the
+    scheduler's liveliness (its end stops the node, noted in ``gone``)."""
     subs = [session.declare_subscriber(bus.outputs_key(run_id, src), lambda s, src=src: node.on_data(src, s))
             for src in producers]
     subs.append(session.declare_subscriber(bus.tick_key(run_id), node.on_tick))
     subs.append(session.declare_subscriber(bus.ctl_key(run_id, name, "cmd"), node.on_cmd))
-    token = session.liveliness().declare_token(bus.alive_key(run_id, name))
-    gone = []  # why the node stops on its own
 
     def on_scheduler(sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.DELETE and not node.stopped.is_set():
@@ -302,32 +335,32 @@ def _serve(scenario: Scenario, wiring: Wiring, name: str, run_id: str, connect: 
             node.stopped.set()
 
     subs.append(session.liveliness().declare_subscriber(bus.scheduler_alive_key(run_id), on_scheduler))
-    if threading.current_thread() is threading.main_thread():
-        def on_term(signum, frame):
-            if not node.stopped.is_set():
-                gone.append(signal.Signals(signum).name)
-            node.stopped.set()
+    return subs
 
-        signal.signal(signal.SIGTERM, on_term)
-        signal.signal(signal.SIGINT, on_term)
-    reply(-1, "ready", fingerprint=mine.as_dict())
-    status = 0
-    try:
-        while not node.stopped.wait(1.0):
-            if time.monotonic() - node.last_heard > IDLE_TIMEOUT_S:
-                print(f"cosim node {name}: nothing from the scheduler for {IDLE_TIMEOUT_S:g} s, exiting",
-                      file=sys.stderr)
-                status = 1
-                break
-        if gone:
-            print(f"cosim node {name}: stopping ({gone[0]}); component closed", file=sys.stderr)
-            status = 1
-    finally:
+
+def _stop_on_signals(node: "_Node", gone: list[str]) -> None:
+    """SIGTERM and SIGINT stop the node (their name noted in ``gone``); outside the main thread, nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def on_term(signum, frame):
+        if not node.stopped.is_set():
+            gone.append(signal.Signals(signum).name)
         node.stopped.set()
-        for sub in subs:
-            sub.undeclare()
-        if node.lock.acquire(timeout=2.0):  # else a step is hung inside the component: leave it
-            reply(-1, "closed", close_fault=stepper.close(), security_events=security.count)
-        token.undeclare()  # after the reply: the scheduler waits for it while the node lives
-        session.close()
-    return status
+
+    signal.signal(signal.SIGTERM, on_term)
+    signal.signal(signal.SIGINT, on_term)
+
+
+def _wait_until_stopped(node: "_Node", name: str, gone: list[str]) -> int:
+    """Wait while the node steps (its subscribers' threads): 0 once the scheduler stopped it, 1 when
+    nothing came from the scheduler for :data:`IDLE_TIMEOUT_S` or it stopped on its own (``gone``)."""
+    while not node.stopped.wait(1.0):
+        if time.monotonic() - node.last_heard > IDLE_TIMEOUT_S:
+            print(f"cosim node {name}: nothing from the scheduler for {IDLE_TIMEOUT_S:g} s, exiting",
+                  file=sys.stderr)
+            return 1
+    if gone:
+        print(f"cosim node {name}: stopping ({gone[0]}); component closed", file=sys.stderr)
+        return 1
+    return 0

@@ -1,16 +1,14 @@
-"""Run a scenario (or its sweep) end to end and write its outputs.
+"""Run one scenario end to end and write its outputs (a sweep's dispatch: :func:`cosim.api.run`).
 
 One run writes into its output folder: ``summary.json``, ``log.csv``,
-``trace.npz`` and ``recording.rrd`` (see :mod:`cosim.record.recorder`), the last
-three as the run goes. A sweep writes one such folder per combination under
-``runs/`` plus a ``summary.json`` with a ``"sweep"`` list and a
-``summary.md`` table.
+``trace.npz`` and ``recording.rrd`` (see :mod:`cosim.runtime.recorder`), the last
+three as the run goes. A sweep (:mod:`cosim.scale.sweep`) writes one such
+folder per combination under ``runs/``.
 
 Ctrl-C (SIGINT) and SIGTERM stop a run after the tick under way: the
 components are closed (outputs made safe), everything recorded is kept and
-``summary.json`` says ``"status": "interrupted"``; a sweep runs no further
-combination. ``summary.json`` says ``"running"`` while the run goes, so a
-folder whose process was killed tells so. Sweeps: see :mod:`cosim.scale.sweep`.
+``summary.json`` says ``"status": "interrupted"``. ``summary.json`` says
+``"running"`` while the run goes, so a folder whose process was killed tells so.
 """
 
 from __future__ import annotations
@@ -24,69 +22,30 @@ import subprocess
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim.contract.errors import OutputWriteError
-from cosim.record.recorder import TraceRecorder
+from cosim.contract.errors import OutputWriteError, RunError, RunFault, WriteError
+from cosim.record.rerun_log import merge_parts, set_aside_parts
 from cosim.record.summary import run_figures
 from cosim.runtime import bus
 from cosim.runtime.fingerprint import fingerprint
+from cosim.runtime.groups import WINDOW, LocalGroup, RemoteGroup, with_close_faults
+from cosim.runtime.hosts import load_hosts
 from cosim.runtime.launch import NODE_START_TIMEOUT_S, node_commands, start_nodes
 from cosim.runtime.placement import node_cpus, threads_started_off
 from cosim.runtime.portcache import PortCache, PortStore
 from cosim.runtime.private_bus import PrivateEndpoints
-from cosim.runtime.scheduler import (
-    WINDOW,
-    LocalGroup,
-    RemoteGroup,
-    RunError,
-    RunFault,
-    Scheduler,
-    StopRequest,
-    WriteError,
-    with_close_faults,
-)
+from cosim.runtime.recorder import TraceRecorder
+from cosim.runtime.request import RunRequest
+from cosim.runtime.rights import access_control, format_rights, rights_of
+from cosim.runtime.scheduler import Scheduler, StopRequest
 from cosim.runtime.security_log import FILE_NAME as SECURITY_FILE
 from cosim.runtime.security_log import SecurityLog, ZenohDenials
 from cosim.runtime.stepper import Stepper, setup_component
 from cosim.runtime.wiring import build_wiring
-from cosim.scale.hosts import load_hosts
-from cosim.scale.rights import access_control, format_rights, rights_of
 from cosim.scenario.paths import make_path
-from cosim.scenario.schema import Scenario, load_scenario
-
-
-@dataclass
-class RunRequest:
-    """What to run: a scenario file, its overrides, where, and how."""
-
-    scenario_file: Path
-    out_dir: Path
-    overrides: list[str] = field(default_factory=list)
-    processes: bool = False
-    progress: bool = True
-    #: with ``processes``: where the nodes run (see :mod:`cosim.runtime.placement`)
-    node_cpus: str = "auto"
-    #: pace the ticks at this factor of real time (None: the scenario's ``realtime``)
-    realtime: float | None = None
-    #: a sweep's runs at a time: 1 runs them one after another in this process
-    jobs: int = 1
-    #: where a sweep's runs execute: None (local worker processes when ``jobs`` > 1), ``local``,
-    #: ``dask`` or ``dask://HOST:PORT`` (see :mod:`cosim.scale.executors`)
-    executor: str | None = None
-    #: with ``executor`` ``dask://tls://HOST:PORT``: this client's files of the run's CA (``cosim certs``)
-    executor_tls: bus.TlsFiles | None = None
-    #: a sweep's run still going after this many seconds of wall time is stopped and failed
-    run_timeout_s: float | None = None
-    #: with ``processes``: a HOSTS.yaml placing the nodes on machines (see :mod:`cosim.scale.hosts`)
-    hosts: Path | None = None
-    #: open workers a sweep runs on instead of its own (several sweeps in a row: see
-    #: :func:`cosim.scale.executors.workers`)
-    workers: Any = None
-    #: cut the recording into parts of this much simulated time [s] (``part-000/``, ...); None: one
-    rotate_s: float | None = None
+from cosim.scenario.schema import Scenario
 
 
 @contextlib.contextmanager
@@ -114,27 +73,6 @@ def stop_on_signals():
             signal.signal(sig, old)
 
 
-def run(request: RunRequest) -> dict[str, Any]:
-    """Run the scenario, or every combination of its sweep; returns the summary written. Every run is
-    checked first as ``cosim validate`` checks it (fields, plugins, parameters, wiring): a scenario
-    that does not validate writes nothing."""
-    scenario = load_scenario(request.scenario_file, request.overrides)
-    from cosim.scenario.check import check_runs
-
-    check_runs(scenario, request.scenario_file, request.overrides)
-    if scenario.sweep and (scenario.n_steps is None or None in scenario.sweep.get("duration_s", [])):
-        from cosim.contract.errors import UserError
-
-        raise UserError(f"{request.scenario_file}: a sweep runs its combinations one after another, so each "
-                        "needs a duration_s (null, run until stopped, is for a single run)")
-    with stop_on_signals() as stop:
-        if not scenario.sweep:
-            return run_one(scenario, request, stop)
-        from cosim.scale.sweep import run_sweep
-
-        return run_sweep(scenario, request, stop)
-
-
 def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = None) -> dict[str, Any]:
     """Run one scenario (no sweep) into ``request.out_dir``; returns and writes ``summary.json``.
 
@@ -150,8 +88,6 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     out = Path(request.out_dir)  # made only once the scenario and the hosts file have validated
     out.mkdir(parents=True, exist_ok=True)
     run_id = secrets.token_hex(4)
-    from cosim.record.rerun_log import set_aside_parts
-
     set_aside_parts(out)  # an earlier run's parts are never merged into this run's recording
     recorder = TraceRecorder(scenario, wiring, out, path, request.rotate_s)
     recorder.open()
@@ -231,8 +167,6 @@ def run_one(scenario: Scenario, request: RunRequest, stop: StopRequest | None = 
     if late_faults:
         error = with_close_faults(error, late_faults)
     recorder.finish(str(error) if error else None)  # a no-op unless set-up failed
-    from cosim.record.rerun_log import merge_parts
-
     merge_parts(out)  # what components recorded themselves, now that their processes have ended
     stopped = stop.event.is_set() and (scenario.n_steps is None or completed < scenario.n_steps)
     summary = _summary(scenario, recorder, completed, scheduler.loop_wall_s if scheduler else 0.0, total_wall,

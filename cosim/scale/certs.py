@@ -10,7 +10,7 @@ for both ends of a link (server and client authentication: mutual TLS). Every
 component placed under ``components:`` on such a host gets a key and a
 certificate of its own beside the host's (``certs/lab.driver.pem``, named
 ``driver@lab``, same address), which its node links with: the run's rights
-go by that name (:mod:`cosim.scale.rights`). The CA exists only for this run's
+go by that name (:mod:`cosim.runtime.rights`). The CA exists only for this run's
 machines, so a certificate it signed admits a peer to this run and to nothing
 else. Private keys are written readable by their owner only.
 """
@@ -25,7 +25,7 @@ import tempfile
 from pathlib import Path
 
 from cosim.contract.errors import UserError
-from cosim.scale.hosts import component_files, component_identity, read_hosts_file
+from cosim.runtime.hosts import component_files, component_identity, read_hosts_file
 
 
 def _san(address: str) -> str:

@@ -27,8 +27,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
 
-#: Environment variables that change what a run does; a job carries the client's.
-ENV_KEYS = ("COSIM_DATASET", "COSIM_CACHE", "COSIM_FMU")
+from cosim.contract.errors import RunError
+from cosim.contract.plugins import environment_keys, get_plugin_manager, plugin_file_sources
+from cosim.record.summary import metric_keys
+from cosim.runtime.cache import CACHE_ENV
+from cosim.runtime.fingerprint import fingerprint, host_name
+from cosim.runtime.request import RunRequest
+from cosim.runtime.runner import run_one, stop_on_signals, write_json
+from cosim.scenario.schema import load_scenario
 
 
 @dataclass(frozen=True)
@@ -59,17 +65,21 @@ class Job:
     scenario_rel: str = ""
 
 
+def env_keys() -> tuple[str, ...]:
+    """The environment variables that change what a run does, so a job carries the client's: the
+    framework's cache folder and those the plugins name (hook ``cosim_register_environment``)."""
+    return tuple(dict.fromkeys((CACHE_ENV, *environment_keys())))
+
+
 def client_env() -> tuple[tuple[str, str], ...]:
-    """The environment variables a run's workers need from this process (:data:`ENV_KEYS` that are set)."""
-    return tuple((k, os.environ[k]) for k in ENV_KEYS if k in os.environ)
+    """The environment variables a run's workers need from this process (those of :func:`env_keys` that are set)."""
+    return tuple((k, os.environ[k]) for k in env_keys() if k in os.environ)
 
 
 def scenario_sources(scenario_file: Path, plugin_files: list[Path]) -> tuple[tuple[tuple[str, bytes], ...], str]:
     """The scenario file and the plugin files it loads (with the Python files beside each, see
     :func:`~cosim.contract.plugins.plugin_file_sources`) as ``(relative path, bytes)``, and the
     scenario's own relative path, relative to the folder that holds them all."""
-    from cosim.contract.plugins import plugin_file_sources
-
     files = [scenario_file.resolve(), *dict.fromkeys(f.resolve() for p in plugin_files for f in plugin_file_sources(p))]
     root = Path(os.path.commonpath([f.parent for f in files]))
     return tuple((str(f.relative_to(root)), f.read_bytes()) for f in files), str(files[0].relative_to(root))
@@ -77,8 +87,9 @@ def scenario_sources(scenario_file: Path, plugin_files: list[Path]) -> tuple[tup
 
 @contextlib.contextmanager
 def _environment(env: tuple[tuple[str, str], ...]) -> Iterator[None]:
-    before = {k: os.environ.get(k) for k in ENV_KEYS}
-    for k in ENV_KEYS:
+    keys = env_keys()
+    before = {k: os.environ.get(k) for k in keys}
+    for k in keys:
         os.environ.pop(k, None)
     os.environ.update(dict(env))
     try:
@@ -106,11 +117,8 @@ def _materialise(job: Job) -> Path:
 
 
 def warm_up() -> None:
-    """Import what every run needs (the runner, the bus, the recorder, the plugins), so a new worker
-    does it while the client still prepares the caches."""
-    from cosim.contract.plugins import get_plugin_manager
-    from cosim.runtime.runner import run_one  # noqa: F401
-
+    """Load the plugins (this module's imports brought the runner, the bus and the recorder), so a
+    new worker does it while the client still prepares the caches."""
     get_plugin_manager()
 
 
@@ -121,8 +129,6 @@ def run_job(job: Job) -> dict[str, Any]:
     ``stuck``: a component's step never returned, so a thread of this process
     is still inside it (the caller retires the process).
     """
-    from cosim.runtime.fingerprint import host_name
-
     with _environment(job.env):
         if job.ship:
             scenario_file = _materialise(job)
@@ -143,11 +149,6 @@ def run_job(job: Job) -> dict[str, Any]:
 
 def _run(job: Job, scenario_file: Path, run_dir: Path) -> tuple[dict, dict | None]:
     """The run's summary (as written in ``run_dir``) and the fingerprint of what made it."""
-    from cosim.runtime.fingerprint import fingerprint
-    from cosim.runtime.runner import RunRequest, run_one, stop_on_signals, write_json
-    from cosim.runtime.scheduler import RunError
-    from cosim.scenario.schema import load_scenario
-
     made_by = None
     with stop_on_signals() as stop:
         timer = None
@@ -203,9 +204,7 @@ def _watch_stop_event(name: str, stop) -> threading.Event:
 
 def failed_summary(error: str) -> dict[str, Any]:
     """The summary of a run that produced none: failed, with ``error``, no figures."""
-    from cosim.record.summary import METRICS
-
-    return {"status": "failed", "error": error, **dict.fromkeys(METRICS)}
+    return {"status": "failed", "error": error, **dict.fromkeys(metric_keys())}
 
 
 def pack(folder: Path) -> bytes:

@@ -11,8 +11,9 @@ and running. Either way:
   a plant's FMU) are made first, here, once (``Component.prepare``);
 * a run that fails, hangs past ``timeout_s`` or crashes its process is one
   failed row, and the others go on;
-* rows are in combination order, each with the host that ran it and the
-  fingerprint of the code and files that made it (``code``, ``artifacts``);
+* rows are in combination order, each with the host that ran it, the
+  fingerprint of the code and files that made it (``code``, ``artifacts``)
+  and every numeric figure of its run's summary (the components' own last);
 * ``DIR/summary.json`` lists the rows done so far while the sweep goes
   (``"status": "running"``), then the table, the plot and the figures.
 """
@@ -28,39 +29,46 @@ from concurrent.futures import FIRST_COMPLETED, Future, wait
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
+from cosim.contract.errors import UserError
+from cosim.contract.plugins import lookup
 from cosim.record.summary import (
-    METRICS,
     largest_below,
+    metric_keys,
     monotonic_within_spread,
     numeric_axes,
+    other_figures,
     pool_replicates,
     pooled_table,
     sweep_plot,
     sweep_table,
 )
+from cosim.runtime.fingerprint import host_name
+from cosim.runtime.request import RunRequest
+from cosim.runtime.runner import write_json
+from cosim.runtime.scheduler import StopRequest
+from cosim.scale.executors import open_executor
 from cosim.scale.jobs import Job, client_env, failed_summary, run_job, scenario_sources, unpack
+from cosim.scale.options import SweepOptions
 from cosim.scenario.schema import Scenario, load_scenario, sweep_overrides
 
 #: How long past its own timeout a job may take to stop and write its outputs before it is given up.
 GIVE_UP_GRACE_S = 30.0
 
 
-def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
-    """Run every combination of ``scenario``'s sweep (``request``: a :class:`cosim.runtime.runner.RunRequest`);
-    returns the sweep's summary, also written to ``request.out_dir``."""
+def run_sweep(scenario: Scenario, request: RunRequest, options: SweepOptions, stop: StopRequest) -> dict[str, Any]:
+    """Run every combination of ``scenario``'s sweep, each with ``request``'s run options, where and how
+    ``options`` say; returns the sweep's summary, also written to ``request.out_dir``."""
     out = Path(request.out_dir).resolve()
     combos = sweep_overrides(scenario)
     clear_earlier_sweep(out / "runs")
     record = SweepRecord(scenario, out, len(combos))
-    executor, own = request.workers, False
-    if executor is None and (request.jobs > 1 or request.executor is not None):
-        from cosim.scale.executors import open_executor
-
-        executor, own = open_executor(request.executor, request.jobs,
+    executor, own = options.workers, False
+    if executor is None and (options.jobs > 1 or options.executor is not None):
+        executor, own = open_executor(options.executor, options.jobs,
                                       place=request.processes and request.node_cpus == "auto",
-                                      tls=request.executor_tls), True
+                                      tls=options.executor_tls), True
     try:
-        jobs = _jobs(combos, request, out, ships=bool(executor and executor.ships),
+        jobs = _jobs(combos, request, options, out, ships=bool(executor and executor.ships),
                      stop_event=getattr(executor, "stop_name", None))
         claim_run_folders(job.run_dir for job in jobs)
         prepare_caches((job.scenario_file, job.overrides) for job in jobs)
@@ -74,13 +82,14 @@ def run_sweep(scenario: Scenario, request, stop) -> dict[str, Any]:
     return record.finish(stop.event.is_set(), request.progress)
 
 
-def _jobs(combos, request, out: Path, ships: bool, stop_event: str | None = None) -> list[Job]:
+def _jobs(combos, request: RunRequest, options: SweepOptions, out: Path, ships: bool,
+          stop_event: str | None = None) -> list[Job]:
     scenario_file = Path(request.scenario_file).resolve()
     sources, scenario_rel = (), ""
     if ships:
         base = load_scenario(scenario_file, request.overrides)
         sources, scenario_rel = scenario_sources(scenario_file, [scenario_file.parent / p for p in base.plugins])
-    serial = request.jobs == 1 and request.executor is None and request.workers is None
+    serial = options.serial()
     jobs = []
     for i, (labels, extra) in enumerate(combos):
         tag = "_".join(f"{k}={v}" for k, v in labels.items())
@@ -89,7 +98,7 @@ def _jobs(combos, request, out: Path, ships: bool, stop_event: str | None = None
                         run_dir=str(out / "runs" / f"{i:03d}_{_safe(tag)}"), processes=request.processes,
                         node_cpus=request.node_cpus, realtime=request.realtime,
                         hosts=str(Path(request.hosts).resolve()) if request.hosts else None,
-                        progress=request.progress and serial, timeout_s=request.run_timeout_s,
+                        progress=request.progress and serial, timeout_s=options.run_timeout_s,
                         env=client_env(), ship=ships, sources=sources, scenario_rel=scenario_rel,
                         stop_event=stop_event))
     return jobs
@@ -99,8 +108,6 @@ def prepare_caches(runs: Iterable[tuple[str | Path, Sequence[str]]]) -> None:
     """Let every component of every run ``(scenario file, overrides)`` make what the runs would
     otherwise each make (``Component.prepare``), once per distinct plugin and parameters. A run
     that fails here is left to fail when it runs, where its row says why."""
-    from cosim.contract.plugins import lookup
-
     seen: set[str] = set()
     for scenario_file, overrides in runs:
         try:
@@ -183,9 +190,6 @@ def _result(future: Future, job: Job, executor) -> dict[str, Any]:
 def _lost(job: Job, text: str, ships: bool) -> dict[str, Any]:
     """The result of a job whose process gave none: a failed summary, also written into its run
     folder (which says ``running`` or does not exist)."""
-    from cosim.runtime.fingerprint import host_name
-    from cosim.runtime.runner import write_json
-
     summary = failed_summary(text)
     written = Path(job.run_dir) / "summary.json"
     if not ships and written.is_file():  # what the run had written: keep its scenario name and pid
@@ -211,15 +215,14 @@ class SweepRecord:
         return [self.rows[i] for i in sorted(self.rows)]
 
     def add(self, job: Job, result: dict[str, Any]) -> dict:
-        from cosim.runtime.runner import write_json
-
         summary, made_by = result["summary"], result.get("fingerprint") or {}
         mark_own(Path(job.run_dir))  # again: a run shipped back from a worker replaced the folder
-        row = {**job.labels, **{k: summary[k] for k in METRICS if summary.get(k) is not None},
+        row = {**job.labels, **{k: summary[k] for k in metric_keys() if summary.get(k) is not None},
                "status": summary["status"], "dir": str(Path(job.run_dir).relative_to(self.out))}
         if summary["status"] != "ok":
             row["error"] = summary.get("error")
         row.update(host=result.get("host"), code=made_by.get("code"), artifacts=made_by.get("artifacts"))
+        row.update(other_figures(summary))  # the components' own figures, after the bookkeeping
         self.rows[job.index] = row
         self.failed += row["status"] != "ok"
         write_json(self.out / "summary.json", {"scenario": self.scenario.name, "status": "running",
@@ -227,8 +230,6 @@ class SweepRecord:
         return row
 
     def finish(self, stopped: bool, progress: bool) -> dict[str, Any]:
-        from cosim.runtime.runner import write_json
-
         rows = self.ordered()
         summary: dict[str, Any] = {"scenario": self.scenario.name, "sweep": rows}
         if stopped:
@@ -296,8 +297,6 @@ def mark_own(folder: Path) -> None:
 def claim_run_folders(folders) -> None:
     """Make and mark this sweep's run folders; one that exists without the mark (a folder the sweep did
     not make) is a UserError naming it, and nothing in it is touched."""
-    from cosim.contract.errors import UserError
-
     for folder in map(Path, folders):
         if folder.exists() and not (folder / SWEEP_MARK).is_file():
             raise UserError(f"{folder} exists and was not made by a sweep: move it away (a sweep writes and "

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cosim.contract.errors import UserError
+from cosim.contract.plugins import registry
+from cosim.scenario.schema import ScenarioError, load_document
 
 SUFFIX = ".yaml"
 
@@ -29,8 +31,6 @@ class ShippedScenario:
     def doc(self) -> str:
         """The scenario's ``description`` field, else the first sentence of the file's opening
         comment ("" when it has neither or does not parse)."""
-        from cosim.scenario.schema import ScenarioError, load_document
-
         try:
             data, document = load_document(self.path)
         except ScenarioError:
@@ -56,8 +56,6 @@ def register_folder(register, folder: Path) -> None:
 
 def shipped_scenarios() -> dict[str, ShippedScenario]:
     """Every shipped scenario by name."""
-    from cosim.contract.plugins import registry
-
     return registry("scenario")
 
 

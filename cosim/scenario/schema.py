@@ -19,12 +19,13 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from cosim.contract.errors import UserError
-from cosim.runtime.bus import RESERVED_NAMES
+from cosim.contract.errors import ScenarioError
+from cosim.contract.params import IDEAL
+from cosim.contract.plugins import load_plugin_file, registry
+from cosim.contract.views import view_roles
 
-
-class ScenarioError(UserError):
-    """A scenario file or override is invalid; the message names the field and line."""
+#: Names no component may take: the bus keys its own messages under them (``cosim/<run>/alive``, ``.../ctl``).
+RESERVED_NAMES = ("alive", "ctl")
 
 
 class _Strict(BaseModel):
@@ -78,26 +79,25 @@ class RecordSpec(_Strict):
 
     ``truth`` is the tracking-error reference (its distance to the path);
     ``measured`` and ``estimate`` are what the sensor and the estimator made of
-    it. Any role may be null. The domain's views (hook ``cosim_register_views``)
-    read roles of their own, with defaults they give; a scenario binds them here
-    too, by the same ``role: component.port``.
+    it. Any role may be null. Their default ports are the domain's (hook
+    ``cosim_default_roles``; none: unbound). The domain's views (hook
+    ``cosim_register_views``) read roles of their own, with defaults they give;
+    a scenario binds them here too, by the same ``role: component.port``.
     """
 
     model_config = ConfigDict(extra="allow")
 
-    measured: str | None = "camera.position"
-    truth: str | None = "plant.position"
-    estimate: str | None = "estimator.position"
-    solve_time: str | None = "controller.solve_time"
+    measured: str | None = None
+    truth: str | None = None
+    estimate: str | None = None
+    solve_time: str | None = None
     #: Measurement minus the estimator's prediction at each frame (NaN between frames).
-    prediction_error: str | None = "estimator.innovation"
+    prediction_error: str | None = None
     #: When each measurement was captured [s] (a sensor that has no such port: at delivery).
-    capture_time: str | None = "camera.capture_time"
+    capture_time: str | None = None
 
     @model_validator(mode="after")
     def _known_roles(self):
-        from cosim.record.views import view_roles
-
         extra = set(self.model_extra or {})
         known = view_roles()
         unknown = sorted(extra - set(known))
@@ -110,10 +110,9 @@ class RecordSpec(_Strict):
         return self
 
     def ports(self) -> dict[str, str | None]:
-        """Every role's port: the views' defaults, then this scenario's bindings."""
-        from cosim.record.views import view_roles
-
-        return {**view_roles(), **self.model_dump()}
+        """Every role's port: the domain's defaults (:func:`cosim.contract.views.view_roles`), then
+        this scenario's bindings."""
+        return {**dict.fromkeys(type(self).model_fields), **view_roles(), **self.model_dump(exclude_unset=True)}
 
 
 class ReportSpec(_Strict):
@@ -301,9 +300,6 @@ def apply_profile(data: dict, name: Any, source: str = "<scenario>",
 def profile_values(name: Any, source: str = "<scenario>") -> dict:
     """The values profile ``name`` sets, ``{plugin name: {param: value}}`` (``ideal``, unless a plugin
     registers it: none); an unknown profile raises :class:`ScenarioError` naming ``source``."""
-    from cosim.contract.params import IDEAL
-    from cosim.contract.plugins import registry
-
     profiles = registry("profile")
     if name == "ideal" and name not in profiles:
         return IDEAL
@@ -315,8 +311,6 @@ def profile_values(name: Any, source: str = "<scenario>") -> dict:
 def load_scenario_plugins(files: list, base_dir: Path) -> None:
     """Register a scenario's own plugin ``files`` (paths relative to ``base_dir``; what is not a
     string is left to the scenario's validation to report)."""
-    from cosim.contract.plugins import load_plugin_file
-
     for item in files:
         if not isinstance(item, str):
             continue

@@ -1,7 +1,7 @@
 """The camera images in the run's recording: each view downscaled, its blobs and the swimmer found.
 
 Logged by the camera component into its own part of the run's recording
-(:func:`cosim.record.rerun_log.component_recording`, ``recording.<component>.rrd``),
+(:func:`cosim.api.component_recording`, ``recording.<component>.rrd``),
 every ``every`` captures, on the simulated-time timeline:
 
 * ``<component>/<view>/image``: the frame scaled by ``scale``, JPEG-encoded;
@@ -20,7 +20,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from cosim.record.rerun_log import TIMELINE, component_recording
+from cosim.api import TIMELINE, component_recording
 from cosim_plugins.camera.calibration import VIEWS, Calibration
 from cosim_plugins.camera.locate import Fix
 

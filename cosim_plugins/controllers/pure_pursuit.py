@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.scenario.paths import Path
+from cosim.contract.paths import ReferencePath
 from cosim_plugins.vec3 import norm
 
 WINDOW_BACK, WINDOW_AHEAD = 20, 200
@@ -18,7 +18,7 @@ WINDOW_BACK, WINDOW_AHEAD = 20, 200
 
 class PurePursuit:
     """The look-ahead point on a path: the closest point, advanced along the path by the look-ahead distance."""
-    def __init__(self, path: Path, lookahead_m: float = 9e-3, gain_s: float = 0.001):
+    def __init__(self, path: ReferencePath, lookahead_m: float = 9e-3, gain_s: float = 0.001):
         self.path, self.lookahead_m, self.gain_s = path, lookahead_m, gain_s
         self.index: int | None = None
         self._pts: np.ndarray | None = None  # the polyline the spacing below belongs to

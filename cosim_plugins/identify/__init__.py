@@ -23,6 +23,11 @@ def cosim_addhooks(pluginmanager):
 
 
 @hookimpl
+def cosim_register_environment(register):
+    register("COSIM_DATASET")  # quick: models trained on demand use the short dataset (identify.cache)
+
+
+@hookimpl
 def cosim_register_commands(register):
     from cosim_plugins.identify import cli
 

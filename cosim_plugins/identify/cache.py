@@ -13,14 +13,15 @@ identified on lab logs, as the paper's were on its rig's.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import sys
 from pathlib import Path
 
+from cosim import api
 from cosim.contract.errors import UserError
-from cosim_plugins.paper.dataset import CacheLock, cache_dir, ensure_dataset
+from cosim.contract.plugins import lookup, registry
+from cosim_plugins.paper.dataset import ensure_dataset
 
 
 def _progress(message: str) -> None:
@@ -40,7 +41,7 @@ def ensure_model(kind: str, quick: bool | None = None, seed: int = 0, profile: s
 
     resolve_names(kind)  # unknown kinds fail here, listing the known ones
     path = model_path(kind, quick, seed, profile)
-    with CacheLock(path.parent.parent / f".{path.parent.name}-{path.stem}.lock"):
+    with api.CacheLock(path.parent.parent / f".{path.parent.name}-{path.stem}.lock"):
         if path.is_file():
             return path
         print(f"training the {kind} model on the paper dataset ({profile} profile; cached in {path.parent})",
@@ -57,23 +58,16 @@ def ensure_model(kind: str, quick: bool | None = None, seed: int = 0, profile: s
 def model_path(kind: str, quick: bool, seed: int = 0, profile: str = "ideal") -> Path:
     """Where the cached ``kind`` model lives: keyed on the fingerprint of the dataset on
     ``profile`` and the model's source code (generating the dataset if needed)."""
-    from cosim.contract.plugins import lookup
-    from cosim_plugins.paper.dataset import plugin_sources
-
     dataset = ensure_dataset(quick=quick, profile=profile)
     stamp = json.loads((dataset.folder / "manifest.json").read_text())["fingerprint"]
-    code = hashlib.sha256(b"".join(
-        Path(f).read_bytes()
-        for f in sorted(plugin_sources(lookup("model", kind), ("cosim_plugins.", "cosim_plugins.identify."))))
-    )
-    folder = cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}"
-    return folder / f"{kind}-{code.hexdigest()[:12]}.npz"
+    code = api.files_digest(api.class_sources(lookup("model", kind), ("cosim_plugins.",)))
+    folder = api.cache_dir() / ("models_quick" if quick else "models") / f"{stamp}-seed{seed}"
+    return folder / f"{kind}-{code[:12]}.npz"
 
 
 def resolve_model(spec: str, base_dir: Path | None = None, quick: bool | None = None, profile: str = "ideal"):
     """A loaded model from a file path or a kind name (trained on demand on ``profile``'s dataset);
     clear errors for both."""
-    from cosim.contract.plugins import registry
     from cosim_plugins.identify.model import load_model
 
     candidate = Path(spec)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from cosim.cli.commands import add_jobs_argument, parse_jobs
+from cosim.api import add_jobs_argument, parse_jobs
 from cosim.contract.errors import UserError
 
 

@@ -24,13 +24,12 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
-import os
 import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from cosim.scenario.schema import profile_values
+from cosim import api
 from cosim_plugins.resources import SCENARIOS_DIR
 
 PAPER_SCENARIOS = SCENARIOS_DIR / "paper"
@@ -39,11 +38,6 @@ QUICK_DURATION_S = 40.0
 #: Simulated seconds per test case (full / quick) and the test set's seed.
 TEST_DURATION_S = (60.0, 20.0)
 TEST_SEED = 300
-
-
-def cache_dir() -> Path:
-    """The cache folder: ``$COSIM_CACHE``, else ``./cache``."""
-    return Path(os.environ.get("COSIM_CACHE", "cache")).resolve()
 
 
 @dataclass
@@ -60,24 +54,21 @@ def _fingerprint(quick: bool, profile: str = "ideal") -> str:
     components and paths the scenarios use (with the plugin modules those import), the
     length and the profile (its name and values; ``ideal`` adds nothing, so its cache
     keys are those of the data made before profiles existed)."""
-    from cosim.runtime.wiring import build_wiring
-    from cosim.scenario.paths import make_path
-    from cosim.scenario.schema import load_scenario
     from cosim_plugins.plant.build import ensure_fmu
 
     h = hashlib.sha256()
     sources: set[str] = set()
     for name in ("training.yaml", "validation.yaml"):
         h.update((PAPER_SCENARIOS / name).read_bytes())
-        scenario = load_scenario(PAPER_SCENARIOS / name, profile_overrides(profile))
-        used = [*build_wiring(scenario).classes.values(), type(make_path(scenario.path.plugin))]
-        sources.update(f for cls in used for f in plugin_sources(cls))
+        scenario = api.load_scenario(PAPER_SCENARIOS / name, profile_overrides(profile))
+        used = [*api.component_classes(scenario).values(), type(api.make_path(scenario.path.plugin))]
+        sources.update(f for cls in used for f in api.class_sources(cls, ("cosim_plugins.",)))
     for source in sorted(sources):
         h.update(Path(source).read_bytes())
     h.update(Path(ensure_fmu()).read_bytes())
     h.update(b"quick" if quick else b"full")
     if profile != "ideal":
-        values = profile_values(profile, "the paper dataset")
+        values = api.profile_values(profile, "the paper dataset")
         h.update(json.dumps({"profile": profile, "values": values}, sort_keys=True, default=str).encode())
     return h.hexdigest()[:16]
 
@@ -90,41 +81,7 @@ def profile_overrides(profile: str) -> list[str]:
 def dataset_folder(quick: bool, profile: str = "ideal") -> Path:
     """The cache folder of the (quick) dataset on ``profile``."""
     name = "paper_dataset_quick" if quick else "paper_dataset"
-    return cache_dir() / (name if profile == "ideal" else f"{name}_{profile}")
-
-
-def plugin_sources(cls: type, prefixes: tuple[str, ...] = ("cosim_plugins.",)) -> set[str]:
-    """The file defining ``cls`` and the files of the modules (named with ``prefixes``) it imports from."""
-    import inspect
-
-    module = sys.modules[cls.__module__]
-    files = {module.__file__}
-    for value in vars(module).values():
-        owner = inspect.getmodule(value)
-        if owner is not None and owner.__name__.startswith(prefixes):
-            files.add(owner.__file__)
-    return files
-
-
-class CacheLock:
-    """An exclusive lock file, so concurrent runs never delete or half-write each other's cache."""
-
-    def __init__(self, path: Path):
-        self.path = path
-
-    def __enter__(self):
-        import fcntl
-
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.fh = open(self.path, "w")
-        fcntl.flock(self.fh, fcntl.LOCK_EX)
-        return self
-
-    def __exit__(self, *exc):
-        import fcntl
-
-        fcntl.flock(self.fh, fcntl.LOCK_UN)
-        self.fh.close()
+    return api.cache_dir() / (name if profile == "ideal" else f"{name}_{profile}")
 
 
 def ensure_dataset(quick: bool = False, folder: Path | None = None, force: bool = False,
@@ -132,7 +89,7 @@ def ensure_dataset(quick: bool = False, folder: Path | None = None, force: bool 
     """The cached dataset on ``profile``; splits that are missing or stale are generated first (progress
     on stderr), ``jobs`` runs at a time on open ``workers`` or its own (see :mod:`cosim.scale.sweep`)."""
     folder = Path(folder) if folder else dataset_folder(quick, profile)
-    with CacheLock(folder.parent / f".{folder.name}.lock"):
+    with api.CacheLock(folder.parent / f".{folder.name}.lock"):
         return _ensure(folder, quick, force, progress, jobs, workers, profile)
 
 
@@ -156,11 +113,9 @@ def _ensure(folder: Path, quick: bool, force: bool, progress: bool, jobs: int, w
     missing = [s for s in plans if not (data.get(s) and all((folder / f).is_file() for f in data[s]))]
     if not missing:
         return PaperDataset(*[[folder / f for f in data[s]] for s in plans], folder)
-    from cosim.scale.executors import workers as open_workers
-
     with contextlib.ExitStack() as stack:
         if workers is None:  # one set of workers for every split
-            workers = stack.enter_context(open_workers(jobs))
+            workers = stack.enter_context(api.workers(jobs))
         for split in missing:
             _generate(folder, split, *plans[split], progress, jobs, workers, data, manifest)
     return PaperDataset(*[[folder / f for f in data[s]] for s in plans], folder)
@@ -169,11 +124,9 @@ def _ensure(folder: Path, quick: bool, force: bool, progress: bool, jobs: int, w
 def _generate(folder: Path, split: str, scenario: Path, overrides: list[str], progress: bool, jobs: int,
               workers, data: dict, manifest: Path) -> None:
     """Run one split's scenario into the cache and note its logs in the manifest."""
-    from cosim.runtime.runner import RunRequest, run
-
     print(f"generating the paper dataset's {split} logs in {folder}", file=sys.stderr)
     out = folder / "runs" / split
-    run(RunRequest(scenario, out, overrides, False, progress, jobs=jobs, workers=workers))
+    api.run(api.RunRequest(scenario, out, overrides, False, progress), api.SweepOptions(jobs=jobs, workers=workers))
     logs = sorted(out.glob("runs/*/log.csv")) or [out / "log.csv"]
     data[split] = [str(f.relative_to(folder)) for f in logs]
     manifest.write_text(json.dumps(data, indent=2))

@@ -23,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from cosim.scenario.schema import load_document
+from cosim import api
 from cosim_plugins.paper import report_format
 from cosim_plugins.paper.dataset import ensure_dataset
 from cosim_plugins.resources import SCENARIOS_DIR as SCENARIOS
@@ -65,7 +65,7 @@ PROFILES = ("ideal", "lab")
 def _scenario_copy(name: str, out_dir: Path, quick: bool, profile: str = "ideal") -> Path:
     """The scenario as run: on ``profile``, shortened in quick mode, the interval sweep repeated over
     :data:`SWEEP_SEEDS` in a full run, written next to the results."""
-    data, _ = load_document(SCENARIOS / name)  # the framework's reading of numbers (5e-8)
+    data, _ = api.load_document(SCENARIOS / name)  # the framework's reading of numbers (5e-8)
     data["profile"] = profile
     key = "components.camera.params.interval_s"
     if quick:
@@ -83,11 +83,9 @@ def _scenario_copy(name: str, out_dir: Path, quick: bool, profile: str = "ideal"
 
 def _run_scenario(name: str, out_dir: Path, quick: bool, jobs: int = 1, workers=None,
                   profile: str = "ideal") -> dict:
-    from cosim.runtime.runner import RunRequest, run
-
     scenario = _scenario_copy(name, out_dir, quick, profile)
-    return run(RunRequest(scenario, out_dir / "runs" / scenario.stem, [], False, progress=True, jobs=jobs,
-                          workers=workers))
+    return api.run(api.RunRequest(scenario, out_dir / "runs" / scenario.stem, [], False, progress=True),
+                   api.SweepOptions(jobs=jobs, workers=workers))
 
 
 def _dataset_info(dataset) -> dict:
@@ -137,10 +135,8 @@ def _trajectory_plots(key: str, out_dir: Path) -> list[str]:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from cosim.scenario.paths import make_path
-
-    scenario, _ = load_document(out_dir / "scenarios" / f"controllers_{key}.yaml")
-    path = make_path(scenario["path"]["plugin"], scenario["path"].get("params", {})).points(0.0) * 1e3
+    scenario, _ = api.load_document(out_dir / "scenarios" / f"controllers_{key}.yaml")
+    path = api.make_path(scenario["path"]["plugin"], scenario["path"].get("params", {})).points(0.0) * 1e3
     runs = sorted((out_dir / "runs" / f"controllers_{key}" / "runs").glob("*"))
     fig, axes = plt.subplots(2, len(runs), figsize=(4 * len(runs), 7), squeeze=False)
     for col, run_dir in enumerate(runs):
@@ -180,9 +176,7 @@ def reproduce(out_dir: Path, quick: bool = False, jobs: int = 1) -> dict:
     wall0 = time.perf_counter()
     timings: dict[str, float] = {}
     results: dict[str, Any] = {}
-    from cosim.scale.executors import workers as open_workers
-
-    with open_workers(jobs) as pool:  # one set of worker processes for every sweep
+    with api.workers(jobs) as pool:  # one set of worker processes for every sweep
         steps = [
             ("dataset", lambda: ensure_dataset(quick=quick, jobs=jobs, workers=pool)),
             ("table2", lambda: _train(results["dataset"], out_dir, quick)),

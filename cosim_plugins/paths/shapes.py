@@ -4,9 +4,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.scenario.paths import SPACING_M, Path, resample, rotation_y
+from cosim.contract.paths import ReferencePath, resample
 
 _MM = 1e-3
+#: Spacing of the dense polyline every shape here returns [m].
+SPACING_M = 0.5e-3
+
+
+def rotation_y(angle_rad: float) -> np.ndarray:
+    """Rotation matrix about +y by ``angle_rad`` [rad], shape (3, 3)."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+class Path(ReferencePath):
+    """A shape of this package: its polyline resampled every :data:`SPACING_M`."""
+
+    spacing_m = SPACING_M
 
 
 def _racetrack_xy(straight_mm: float, radius_mm: float, n: int = 2000) -> tuple[np.ndarray, np.ndarray]:

@@ -1,6 +1,6 @@
 """``plant.fmu``: the swimmer plant FMU as a cosim component (fmpy, FMI 2.0 CS).
 
-A :class:`cosim.components.FmuComponent`: inputs arrive over a delayed edge
+A :class:`cosim.FmuComponent`: inputs arrive over a delayed edge
 from the coil driver (the values seen at ``step(t)`` were applied over
 ``[t_prev, t)``), and every FMU parameter can be set from the scenario by its
 FMI name (see ``cosim_plugins/plant/swimmer_plant/README.md``). The project's FMU is built on
@@ -12,8 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
-from cosim import Port
-from cosim.components import FmuComponent
+from cosim import FmuComponent, Port
 
 
 class FmuPlant(FmuComponent):

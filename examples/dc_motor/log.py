@@ -3,7 +3,7 @@
 Columns: ``t_s``, the controller's ``command`` (``voltage_V``,
 ``setpoint_rad_s``, ``demand_V``: the PI's demand before the clip) and the
 motor's ``state`` (``current_A``, ``speed_rad_s``, ``angle_rad``). A
-:class:`cosim.record.views.RunView`: it applies to a run that records the
+:class:`cosim.contract.views.RunView`: it applies to a run that records the
 roles ``motor_command`` and ``motor_state`` (by default
 ``controller.command`` and ``motor.state``).
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.record.views import RunView
+from cosim.contract.views import RunView
 
 HEADER = "t_s,voltage_V,setpoint_rad_s,demand_V,current_A,speed_rad_s,angle_rad"
 

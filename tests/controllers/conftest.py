@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 
 
 @pytest.fixture(scope="package", autouse=True)

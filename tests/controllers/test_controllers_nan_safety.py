@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.api import RunRequest, run
 from cosim.contract import plugins
-from cosim.runtime.runner import RunRequest, run
 from cosim.runtime.scheduler import RunError
 from cosim_plugins.raw_log import read_log
 

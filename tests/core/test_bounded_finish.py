@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from cosim.record import rerun_log
-from cosim.record.recorder import TraceRecorder
 from cosim.record.trace_files import ChunkedTrace, load_trace
+from cosim.runtime.recorder import TraceRecorder
 from cosim.runtime.wiring import build_wiring
 from cosim.scenario.schema import load_scenario
 

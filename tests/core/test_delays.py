@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.api import RunRequest, run
 from cosim.contract.errors import UserError
-from cosim.runtime.runner import RunRequest, run
 from cosim.scenario.schema import MAX_DELAY_TICKS, load_scenario
 
 LOOP = Path(__file__).parent / "data" / "loop.yaml"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "ema_racetrack.yaml"
 

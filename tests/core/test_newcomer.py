@@ -15,8 +15,8 @@ import pytest
 from cosim.cli import commands
 from cosim.cli.main import main
 from cosim.contract.errors import UserError
+from cosim.runtime.check import check_scenario
 from cosim.scenario.catalog import resolve_scenario
-from cosim.scenario.check import check_scenario
 from cosim.scenario.schema import load_scenario
 from cosim_plugins.resources import SCENARIOS_DIR
 

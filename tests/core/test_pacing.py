@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from cosim.api import RunRequest, run
 from cosim.runtime.pacing import Pacer
-from cosim.runtime.runner import RunRequest, run
 
 TOY = Path(__file__).parent / "data" / "toy.yaml"
 

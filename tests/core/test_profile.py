@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from cosim import api
 from cosim.record.summary import largest_below, monotonic_within_spread, pool_replicates
 from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
 from cosim_plugins.profiles import LAB
@@ -97,4 +98,4 @@ def test_the_dataset_cache_key_includes_the_profile(monkeypatch, tmp_path):
     monkeypatch.setitem(LAB["camera.emulator"], "noise_px", LAB["camera.emulator"]["noise_px"] + 1.0)
     assert dataset._fingerprint(True, "lab") not in (ideal, lab)
     with pytest.raises(UserError, match="unknown"):
-        dataset.profile_values("nosuch")
+        api.profile_values("nosuch")

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 from cosim.runtime.scheduler import REPLY_BATCH, RunError
 from cosim_plugins.raw_log import HEADER, read_log
 

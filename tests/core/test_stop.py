@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.record.recorder import FLUSH_EVERY_S, load_trace
+from cosim.runtime.recorder import FLUSH_EVERY_S, load_trace
 from cosim.runtime.scheduler import WINDOW
 from cosim_plugins.raw_log import read_log
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 from figure_checks import assert_labelled
 
-from cosim.record.summary import detection_error_m, largest_below, sweep_plot, sweep_table
+from cosim.record.summary import largest_below, sweep_plot, sweep_table
+from cosim_plugins.figures import detection_error_m
 
 
 def row(interval, est, mean, status="ok"):

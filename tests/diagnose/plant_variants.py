@@ -25,7 +25,7 @@ VARIANTS = {
 def record_and_diagnose(job):
     """(variant, log paths, diagnosis result) of one variant: its four logs recorded into ``root``."""
     variant, root = job
-    from cosim.runtime.runner import RunRequest, run
+    from cosim.api import RunRequest, run
     from cosim_plugins.diagnose.pipeline import Settings
     from cosim_plugins.diagnose.pipeline import run as diagnose
 

@@ -14,8 +14,8 @@ import csv
 import numpy as np
 import pytest
 
-from cosim.runtime.runner import RunRequest
-from cosim.runtime.runner import run as run_scenario
+from cosim.api import RunRequest
+from cosim.api import run as run_scenario
 from cosim_plugins.diagnose.pipeline import Settings, run
 from cosim_plugins.diagnose.report import write_outputs
 from cosim_plugins.resources import SCENARIOS_DIR

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 from cosim_plugins.resources import SCENARIOS_DIR
 
 SCENARIO = SCENARIOS_DIR / "feedback_sweep.yaml"

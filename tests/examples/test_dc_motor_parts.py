@@ -154,7 +154,7 @@ def test_the_fmu_cache_is_ignored_by_git(dc_motor):
 
 
 def test_the_example_imports_only_the_frameworks_public_names():
-    allowed = {"cosim", "cosim.record.views"}
+    allowed = {"cosim", "cosim.contract.views"}
     files = sorted(EXAMPLE.rglob("*.py"))
     assert len(files) >= 7
     for file in files:

@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 from sweep_checks import TOY
 
+from cosim.api import RunRequest, run
 from cosim.cli import main
-from cosim.runtime.runner import RunRequest, run
 
 REMOTE = ("camera", "estimator")  # on host two; plant and controller run here
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from proc_sockets import socket_inodes
 
-from cosim.runtime.runner import RunRequest, run
+from cosim.api import RunRequest, run
 
 ROOT = Path(__file__).resolve().parents[2]
 TOY = ROOT / "tests" / "core" / "data" / "toy.yaml"

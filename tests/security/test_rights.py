@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.api import RunRequest, run
 from cosim.cli import main
 from cosim.runtime import bus
 from cosim.runtime.bus import TlsFiles
-from cosim.runtime.runner import RunRequest, run
 from cosim.runtime.wiring import build_wiring
 from cosim.scenario.schema import load_scenario
 from cosim_plugins.resources import SCENARIOS_DIR
@@ -144,7 +144,7 @@ def test_plain_tcp_beyond_loopback_is_refused(tmp_path, capsys):
 
 def test_rights_text_round_trips_and_bad_text_is_named():
     from cosim.contract.errors import UserError
-    from cosim.scale.rights import Rights, format_rights, parse_rights
+    from cosim.runtime.rights import Rights, format_rights, parse_rights
 
     rights = Rights("sim", {"sim": ("plant", "controller"), "cam": ("camera",)})
     assert parse_rights(format_rights(rights)) == rights
@@ -153,8 +153,8 @@ def test_rights_text_round_trips_and_bad_text_is_named():
 
 
 def test_each_placed_component_links_with_a_certificate_of_its_own_and_its_rights_only(tmp_path):
-    from cosim.scale.hosts import load_hosts
-    from cosim.scale.rights import access_control, rights_of
+    from cosim.runtime.hosts import load_hosts
+    from cosim.runtime.rights import access_control, rights_of
 
     scenario = load_scenario(SCENARIO)
     plan = load_hosts(_hosts(tmp_path), scenario)

@@ -104,7 +104,7 @@ def access_control(run_id: str, wiring, rights: Rights) -> dict:
 
 
 def rights_of(plan) -> Rights:
-    """The rights of a hosts plan (:class:`cosim.scale.hosts.HostsPlan`): each node's component under
+    """The rights of a hosts plan (:class:`cosim.runtime.hosts.HostsPlan`): each node's component under
     the identity it links with (its own certificate's, or the scheduler host's)."""
     identities: dict[str, list[str]] = {plan.scheduler_host: []}
     for name, place in plan.nodes.items():

@@ -1,9 +1,9 @@
 """Recording views: what a domain draws of a run and writes beside its trace.
 
 The framework records every port of every component (``trace.npz``) and draws
-what it knows of any controlled system: the reference path, the ``truth``,
-``measured`` and ``estimate`` positions when they are 3-vectors, and the
-tracking error (see :mod:`cosim.record.rerun_log`). A domain adds the rest
+what it knows of any controlled system: the reference path and the tracking
+error (see :mod:`cosim.record.rerun_log`). A domain adds the rest (its 3D
+world, e.g. the ``truth``, ``measured`` and ``estimate`` positions)
 with a :class:`RunView`, registered through the ``cosim_register_views``
 hook: the roles it reads (so a scenario's ``record:`` may bind them), rerun
 views and what it draws into them batch by batch, and files it writes as the
@@ -19,6 +19,8 @@ from typing import Protocol
 
 import numpy as np
 
+from cosim.contract.plugins import get_plugin_manager, registry
+
 
 class RunFile(Protocol):
     """A file a view writes as the run goes."""
@@ -28,7 +30,8 @@ class RunFile(Protocol):
     def append(self, recorder, start: int, stop: int) -> None:
         """Write ticks ``start:stop`` of the recorder (see :meth:`TraceRecorder.signal`)."""
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Flush and close the file."""
 
 
 class RunView:
@@ -39,6 +42,8 @@ class RunView:
     roles: dict[str, str | None] = {}
     #: ``{key: file name}`` of the files it writes (the keys of summary.json's ``files``)
     files: dict[str, str] = {}
+    #: it draws into the 3D view (entities under ``world/``, where the framework draws the path)
+    spatial: bool = False
 
     def applies(self, recorder) -> bool:
         """Whether the run has what this view shows: by default, every role it reads is recorded."""
@@ -61,14 +66,14 @@ class RunView:
 
 def registered_views() -> dict[str, RunView]:
     """Every recording view the installed plugins register, by name."""
-    from cosim.contract.plugins import registry
-
     return registry("view")
 
 
 def view_roles() -> dict[str, str | None]:
-    """Every role a registered view reads, with its default port."""
+    """Every role's default port: those the domain gives the framework's roles (hook
+    ``cosim_default_roles``), then every role a registered view reads."""
     roles: dict[str, str | None] = {}
+    get_plugin_manager().hook.cosim_default_roles(register=roles.setdefault)
     for view in registered_views().values():
         for role, port in view.roles.items():
             roles.setdefault(role, port)

@@ -7,7 +7,7 @@ batches: the log and the trace at least every ``FLUSH_EVERY_S`` of wall time
 and of simulated time, the recording every ``FLUSH_EVERY_S`` of wall time and
 whenever the chunk is full:
 
-* the files the domain's views write (:mod:`cosim.record.views`, e.g. a
+* the files the domain's views write (:mod:`cosim.contract.views`, e.g. a
   raw log in the domain's own format);
 * the trace: ``trace.chunks/`` while the run goes (a chunk file per full chunk
   plus the rows of the one under way, see :mod:`cosim.record.trace_files`),
@@ -36,6 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from cosim.contract.errors import OutputWriteError
+from cosim.contract.views import registered_views
+from cosim.record import rerun_log
+from cosim.record.figures import RunFigures
 from cosim.record.trace_files import CURRENT, ChunkedTrace, iter_trace, load_trace  # noqa: F401 (the readers live there)
 from cosim.runtime.portcache import port_slots
 from cosim.runtime.wiring import Wiring
@@ -101,8 +104,6 @@ class TraceRecorder:
         self._files: dict = {}  # the views' files, by key
         self._file_ticks: dict = {}  # ticks written to each of the files, by key
         self._joining: list[threading.Thread] = []  # the parts' traces being joined into trace.npz
-        from cosim.record.figures import RunFigures
-
         self.figures = RunFigures(self)
 
     def open(self) -> None:
@@ -111,9 +112,6 @@ class TraceRecorder:
         self._open_part()
 
     def _open_part(self) -> None:
-        from cosim.record import rerun_log
-        from cosim.record.views import registered_views
-
         folder = self.out_dir
         if self.part_ticks is not None:
             folder = self.out_dir / PART_DIR.format(len(self.parts))

@@ -28,7 +28,7 @@ loopback. With TLS every component placed under ``components:`` has a
 certificate of its own (``cosim certs`` writes ``certs/lab.driver.pem`` and
 ``.key`` beside its host's ``certs/lab.pem``, named ``driver@lab``), and every
 process enforces each certificate's rights by its name
-(:mod:`cosim.scale.rights`): a component's own keys only. The components not
+(:mod:`cosim.runtime.rights`): a component's own keys only. The components not
 placed there run on the scheduler's machine under its certificate. Errors name
 the file, the field and its line.
 """
@@ -44,15 +44,11 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from cosim.contract.errors import UserError
+from cosim.contract.errors import HostsError
 from cosim.runtime.bus import TlsFiles
 from cosim.scenario.schema import Scenario, error_lines, line_of, load_document
 
 ENDPOINT = re.compile(r"^(tcp|tls)/(\[[^\]]+\]|[^:/\s\[\]]+):(\d{1,5})$")
-
-
-class HostsError(UserError):
-    """A hosts file is invalid; the message names the file, the field and its line."""
 
 
 class _Strict(BaseModel):
@@ -148,98 +144,126 @@ def load_hosts(path: Path, scenario: Scenario) -> HostsPlan:
         spec = HostsFile.model_validate(data)
     except ValidationError as exc:
         raise HostsError(f"{path}: invalid hosts file\n" + "\n".join(error_lines(exc, node))) from None
+    check = _HostsCheck(path, node, spec, scenario)
+    check.names()
+    scheduler_listen = check.endpoint(("scheduler", "listen"), spec.scheduler.listen, check.here)
+    nodes = check.nodes()
+    check.local_files(nodes)
+    return HostsPlan(path, check.here, scheduler_listen,
+                     check.tls_of(check.here) if scheduler_listen.startswith("tls/") else None, nodes, spec.wait_s)
 
-    def fail(loc: tuple, message: str):
-        line = line_of(node, loc)
-        raise HostsError(f"{path}: {'.'.join(map(str, loc))}{f' (line {line})' if line else ''}: {message}")
 
-    for loc, host in [(("scheduler", "host"), spec.scheduler.host),
-                      *((("components", c, "host"), p.host) for c, p in spec.components.items())]:
-        if host not in spec.hosts:
-            fail(loc, f"no host {host!r} under hosts (have: {', '.join(spec.hosts)})")
-    for name in spec.components:
-        if name not in scenario.components:
-            fail(("components", name), f"the scenario has no component {name!r} "
-                                       f"(have: {', '.join(scenario.components)})")
-    here = spec.scheduler.host
-    if spec.hosts[here].launch not in (None, "local"):
-        fail(("hosts", here, "launch"), f"{here} runs the scheduler: it is this machine (launch: local)")
-    used = {here, *(spec.components[c].host for c in spec.components)}
-    base = path.parent
+class _HostsCheck:
+    """The stages of :func:`load_hosts` on a validated hosts file: its names, endpoints, placements
+    and certificate files; every error a :class:`HostsError` naming the field and its line."""
 
-    def tls_of(host: str, component: str | None = None) -> TlsFiles | None:
+    def __init__(self, path: Path, node, spec: HostsFile, scenario: Scenario):
+        self.path, self.node, self.spec, self.scenario = path, node, spec, scenario
+        self.here = spec.scheduler.host  # this machine: it runs the scheduler
+        self.used = {self.here, *(spec.components[c].host for c in spec.components)}
+        self.base = path.parent
+
+    def fail(self, loc: tuple, message: str):
+        """Raise the :class:`HostsError` of the field at ``loc``."""
+        line = line_of(self.node, loc)
+        raise HostsError(f"{self.path}: {'.'.join(map(str, loc))}{f' (line {line})' if line else ''}: {message}")
+
+    def names(self) -> None:
+        """Every host named is under ``hosts``, every component placed is the scenario's, and the
+        scheduler's host is this machine."""
+        spec = self.spec
+        for loc, host in [(("scheduler", "host"), spec.scheduler.host),
+                          *((("components", c, "host"), p.host) for c, p in spec.components.items())]:
+            if host not in spec.hosts:
+                self.fail(loc, f"no host {host!r} under hosts (have: {', '.join(spec.hosts)})")
+        for name in spec.components:
+            if name not in self.scenario.components:
+                self.fail(("components", name), f"the scenario has no component {name!r} "
+                                                f"(have: {', '.join(self.scenario.components)})")
+        if spec.hosts[self.here].launch not in (None, "local"):
+            self.fail(("hosts", self.here, "launch"),
+                      f"{self.here} runs the scheduler: it is this machine (launch: local)")
+
+    def tls_of(self, host: str, component: str | None = None) -> TlsFiles | None:
         """The host's files, or with ``component`` the component's own certificate and key."""
-        h = spec.hosts[host]
+        spec, h = self.spec, self.spec.hosts[host]
         if spec.tls is None or h.cert is None or h.key is None:
             return None
         if component is None:
-            return TlsFiles(base / spec.tls.ca, base / h.cert, base / h.key)
-        return TlsFiles(base / spec.tls.ca, *component_files(base / h.cert, base / h.key, component))
+            return TlsFiles(self.base / spec.tls.ca, self.base / h.cert, self.base / h.key)
+        return TlsFiles(self.base / spec.tls.ca, *component_files(self.base / h.cert, self.base / h.key, component))
 
-    def launch_of(host: str) -> str:
-        return "local" if host == here else spec.hosts[host].launch or spec.launch
+    def launch_of(self, host: str) -> str:
+        """How ``host``'s nodes start: ``local`` on this machine, else its own or the file's ``launch``."""
+        return "local" if host == self.here else self.spec.hosts[host].launch or self.spec.launch
 
-    def endpoint(loc: tuple, text: str | None, host: str) -> str:
+    def endpoint(self, loc: tuple, text: str | None, host: str) -> str:
         """The checked endpoint, or a free port on the host's address (this machine only)."""
-        address = spec.hosts[host].address
+        address = self.spec.hosts[host].address
+        several = len(self.used) > 1
         if text is None:
-            if launch_of(host) != "local":
-                fail(loc, f"needs an endpoint (e.g. tls/{address}:7450): host {host} is another machine")
-            text = f"{'tls' if len(used) > 1 else 'tcp'}/{address}:{_free_port(address)}"
+            if self.launch_of(host) != "local":
+                self.fail(loc, f"needs an endpoint (e.g. tls/{address}:7450): host {host} is another machine")
+            text = f"{'tls' if several else 'tcp'}/{address}:{_free_port(address)}"
         match = ENDPOINT.match(text)
         if not match:
-            fail(loc, f"{text!r} is not an endpoint: expected tcp/ADDRESS:PORT or tls/ADDRESS:PORT")
+            self.fail(loc, f"{text!r} is not an endpoint: expected tcp/ADDRESS:PORT or tls/ADDRESS:PORT")
         if match[2].strip("[]") != address:
-            fail(loc, f"{text} is not at host {host}'s address {address} (its certificate names that address)")
-        if len(used) > 1 and match[1] != "tls":
-            fail(loc, f"{text}: a run over more than one host links its machines with mutual TLS: use a "
-                      f"tls/ endpoint (and the run's certificates, see cosim certs)")
+            self.fail(loc, f"{text} is not at host {host}'s address {address} (its certificate names that address)")
+        if several and match[1] != "tls":
+            self.fail(loc, f"{text}: a run over more than one host links its machines with mutual TLS: use a "
+                           f"tls/ endpoint (and the run's certificates, see cosim certs)")
         if match[1] == "tcp" and not _is_loopback(address):
             where = f"tls/{address}:{match[3]}" if address not in ("0.0.0.0", "::", "[::]") else \
                 "a tls/ endpoint at the host's own address"
-            fail(loc, f"{text}: plain TCP beyond loopback lets anyone on the network join the run and drive "
-                      f"its hardware: use {where} with the run's certificates (cosim certs)")
+            self.fail(loc, f"{text}: plain TCP beyond loopback lets anyone on the network join the run and drive "
+                           f"its hardware: use {where} with the run's certificates (cosim certs)")
         if match[1] == "tls":
-            need_tls(loc, host)
+            self.need_tls(loc, host)
         return text
 
-    def need_tls(loc: tuple, host: str) -> None:
-        if spec.tls is None:
-            fail(("tls",), f"missing: {'.'.join(map(str, loc))} is a tls/ endpoint, which needs the run's CA "
-                           "certificate (tls: {ca: certs/ca.pem}; cosim certs HOSTS.yaml makes it)")
+    def need_tls(self, loc: tuple, host: str) -> None:
+        """A tls/ endpoint at ``loc`` needs the run's CA and ``host``'s certificate and key."""
+        if self.spec.tls is None:
+            self.fail(("tls",), f"missing: {'.'.join(map(str, loc))} is a tls/ endpoint, which needs the run's CA "
+                                "certificate (tls: {ca: certs/ca.pem}; cosim certs HOSTS.yaml makes it)")
         for field in ("cert", "key"):
-            if getattr(spec.hosts[host], field) is None:
-                fail(("hosts", host), f"missing {field}: host {host} has a tls/ endpoint "
-                                      "(cosim certs HOSTS.yaml makes the run's certificates)")
+            if getattr(self.spec.hosts[host], field) is None:
+                self.fail(("hosts", host), f"missing {field}: host {host} has a tls/ endpoint "
+                                           "(cosim certs HOSTS.yaml makes the run's certificates)")
 
-    scheduler_listen = endpoint(("scheduler", "listen"), spec.scheduler.listen, here)
-    nodes = {}
-    for name in scenario.components:
-        placed = spec.components.get(name)
-        place = placed or PlacementSpec(host=here)
-        h = spec.hosts[place.host]
-        listen = endpoint(("components", name, "listen"), place.listen, place.host)
-        tls = None
-        if listen.startswith("tls/"):  # a placed component links with a certificate of its own
-            tls = tls_of(place.host, name if placed else None)
-        identity = component_identity(name, place.host) if placed else here
-        nodes[name] = NodePlace(name, place.host, listen, place.cpus, launch_of(place.host), tls,
-                                h.ssh or h.address, h.workdir or os.getcwd(), h.python, identity)
-    checks = []  # (field, file) of the files this machine's processes link with
-    for host in sorted(used):
-        files = tls_of(host)
-        if files is not None and launch_of(host) == "local":  # on other machines the node checks its own
-            checks += [(("tls", "ca"), files.ca), (("hosts", host, "cert"), files.cert),
-                       (("hosts", host, "key"), files.key)]
-    for name, place in nodes.items():
-        if name in spec.components and place.tls is not None and place.launch == "local":
-            checks += [(("components", name), place.tls.cert), (("components", name), place.tls.key)]
-    for loc, file in checks:
-        if not file.is_file():
-            fail(loc, f"{file} does not exist (cosim certs {path} makes the run's certificates: one per host "
-                      "and one per component placed under components:)")
-    return HostsPlan(path, here, scheduler_listen, tls_of(here) if scheduler_listen.startswith("tls/") else None,
-                     nodes, spec.wait_s)
+    def nodes(self) -> dict[str, NodePlace]:
+        """Where each of the scenario's components runs (unplaced ones: on this machine)."""
+        nodes = {}
+        for name in self.scenario.components:
+            placed = self.spec.components.get(name)
+            place = placed or PlacementSpec(host=self.here)
+            h = self.spec.hosts[place.host]
+            listen = self.endpoint(("components", name, "listen"), place.listen, place.host)
+            tls = None
+            if listen.startswith("tls/"):  # a placed component links with a certificate of its own
+                tls = self.tls_of(place.host, name if placed else None)
+            identity = component_identity(name, place.host) if placed else self.here
+            nodes[name] = NodePlace(name, place.host, listen, place.cpus, self.launch_of(place.host), tls,
+                                    h.ssh or h.address, h.workdir or os.getcwd(), h.python, identity)
+        return nodes
+
+    def local_files(self, nodes: dict[str, NodePlace]) -> None:
+        """The certificate files this machine's processes link with exist (on other machines the node
+        checks its own)."""
+        checks = []  # (field, file)
+        for host in sorted(self.used):
+            files = self.tls_of(host)
+            if files is not None and self.launch_of(host) == "local":
+                checks += [(("tls", "ca"), files.ca), (("hosts", host, "cert"), files.cert),
+                           (("hosts", host, "key"), files.key)]
+        for name, place in nodes.items():
+            if name in self.spec.components and place.tls is not None and place.launch == "local":
+                checks += [(("components", name), place.tls.cert), (("components", name), place.tls.key)]
+        for loc, file in checks:
+            if not file.is_file():
+                self.fail(loc, f"{file} does not exist (cosim certs {self.path} makes the run's certificates: one "
+                               "per host and one per component placed under components:)")
 
 
 def read_hosts_file(path: Path) -> tuple[HostsFile, Path]:
