@@ -81,6 +81,11 @@ TARGETS = (  # cheap and most dangerous first: a run cut short still has their f
            ("tests/identify/test_identify_data.py", "tests/identify/test_raw_log_outliers.py",
             "tests/identify/test_raw_log_format.py")),
     Target("convert", "cosim_plugins/identify/convert.py", ("tests/identify/test_convert.py",)),
+    # the verdict on hand-made results (milliseconds a test): its gates at their edges and its words, case by case
+    Target("verdict", "cosim_plugins/diagnose/verdict.py",
+           ("tests/diagnose/test_verdict.py", "tests/diagnose/test_stepwise_parts.py",
+            "tests/diagnose/test_diagnose_parts.py",
+            "-k", "test_verdict or naming_gates or unidentifiable or verdict_names")),
     Target("inverse", "cosim_plugins/coil_driver/inverse.py",
            ("tests/coil_driver/test_coil_visa.py", "tests/coil_driver/test_coil_daq.py", *COIL_TESTS),
            timeout_s=180.0),
