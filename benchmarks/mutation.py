@@ -97,6 +97,15 @@ TARGETS = (  # cheap and most dangerous first: a run cut short still has their f
 
 #: Survivors that no input the module can receive tells from the original: {mutant: why}.
 EQUIVALENT: dict[str, str] = {
+    # verdict.py
+    'cosim_plugins.diagnose.verdict.x__clues_text__mutmut_3':
+        "localisation without clues read as None for []: both are false, 'none stand out' either way",
+    'cosim_plugins.diagnose.verdict.x__clues_text__mutmut_5':
+        "localisation without clues read as None (get without a default) for []: both false, the same words",
+    'cosim_plugins.diagnose.verdict.x__verdict__mutmut_61':
+        "_steps_text called without steps too: with none chosen none is dropped, and it returns ''",
+    'cosim_plugins.diagnose.verdict.x_fit_notes__mutmut_35':
+        'a missing condition number read as 1.0 for 0.0: both are far below NOTE_CONDITION (1e8)',
     # raw_log.py
     'cosim_plugins.raw_log.x__clean__mutmut_6':
         'raw[:, 4:8] for 4:7: the array has 7 columns, slicing past the last is the same',

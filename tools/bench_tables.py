@@ -167,15 +167,15 @@ def _hosts(d: dict) -> str:
 
 
 def _mutation(d: dict) -> str:
-    out = d["output"]
-    parts = []
-    for label, m in out["modules"].items():
-        reached = f", {m['not_reached']} of {m['not_reached_of']} not reached" if "not_reached" in m else ""
-        of_ = m["of"] if "of" in m else m["mutants"] - m["equivalent"]  # printed: mutants less the equivalent
-        parts.append(f"{label} {m['score']:.3f} ({m['killed']} of {of_}{reached})")
-    first = out.get("first_run_not_repeated")
-    text = ", ".join(parts)
-    return text + (f"; first run, not repeated: {', '.join(f'{k} {v:.3f}' for k, v in first.items())}" if first else "")
+    """One module's runs of ``benchmarks/mutation.py --only NAME``: ``output`` is what each run printed, in order
+    (the first tests every mutant, a later one the survivors again against the tests added since); the figures
+    are the last run's, the time every run's."""
+    runs = d["output"] if isinstance(d["output"], list) else [d["output"]]
+    (path, m), = runs[-1]["modules"].items()
+    tested = m["mutants"] - m["equivalent"]
+    times = " + ".join(f"{r['seconds']:.0f}" for r in runs)
+    return (f"`{path.rsplit('/', 1)[-1]}` {m['score']:.3f} ({m['killed']} of {tested}; {m['mutants']} mutants, "
+            f"{m['equivalent']} equivalent; {times} s)")
 
 
 def _soak(d: dict) -> str:

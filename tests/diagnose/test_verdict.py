@@ -363,3 +363,99 @@ def test_fit_notes_name_each_problem():
     assert fit_notes(result(1.0, 0.4)) == [] and len(fit_notes(r)) == 3  # 1e8 is not beyond 1e8
     r["ranking"][0]["conditioning"] = {"tradeoffs": [("Cd1", "wall_drag.k", 0.8)]}  # the effect's own named second
     assert fit_notes(r)[0].startswith("wall_drag.k trades off with Cd1 (correlation +0.80)")
+
+
+# --- details the cases above leave open -----------------------------------------------------------------------
+
+def test_a_drift_verdict_in_full():
+    assert verdict(result(2.0, 0.4, drift=drift(0.5)), K)["explanation"] == (
+        "The logs disagree with each other: the drag falls 10% from log to log. With Cd1 fitted as one value per "
+        "log, the held-out error at 1.0 s falls by 30% (to 0.50 mm; t = 4.0). Next: look for what changed between "
+        "the experiments (water temperature, the swimmer's insertion, coil heating); --per-log Cd1 fits them per "
+        "log. With the drift in, 0.50 mm remain at 1.0 s against a noise floor of 0.40 mm: what is left is noise.")
+
+
+def test_several_effects_added_looked_alike_or_chosen_are_listed_with_their_separators():
+    added = {"effects": ["background_flow", "wall_drag"], "before_mm": {K: 3.0}, "rollout_mm": {K: 2.0}}
+    steps = [step("background_flow", 2.0, 1.6), step("wall_drag", 1.6, 1.2), step("gradient_force", 1.2, 0.9)]
+    text = verdict(result(2.0, 0.4, steps=steps, joint_left=0.9, added=added), K)["explanation"]
+    assert text.startswith("With background_flow + wall_drag added, the held-out error at 1.0 s went from 3.00 to "
+                           "2.00 mm. For what remains: ")
+    assert "falls from 1.20 to 0.90 mm given background_flow and wall_drag (25%" in text
+    rivals = {"sensor_latency": RIVAL["sensor_latency"], "step_out": {**RIVAL["sensor_latency"], "t_stat": 0.4}}
+    tie = step("actuation_lag", 1.0, 0.45, group=["sensor_latency", "step_out"], evidence=rivals)
+    text = verdict(result(1.0, 0.4, steps=[tie], joint_left=0.45), K)["explanation"]
+    assert text.startswith("actuation_lag or sensor_latency or step_out explain the error about equally well")
+    assert "refitted together it adds +1%), step_out (t = 0.4 at 1.0 s" in text
+
+
+def test_an_effect_that_goes_below_the_floor_removes_at_most_all_of_the_excess():
+    """1.0 -> 0.3 mm over a 0.4 mm floor removes 0.7 of an excess of 0.6 mm: said as 100 %, not 117 %."""
+    text = verdict(result(1.0, 0.4, steps=[step("wall_drag", 1.0, 0.3)], joint_left=0.3), K)["explanation"]
+    assert "(70%; t = 6.0; 100% of the excess over the noise floor, 0.40 mm)" in text
+
+
+def test_a_result_without_the_optional_parts_still_reads():
+    """No localisation, no dropped list, candidates without an "identifiable" flag (identifiable then)."""
+    r = result(2.0, 0.4, ranking=[{**cand("background_flow", 0.06, 1.5)}])
+    del r["localisation"], r["ranking"][0]["identifiable"]
+    v = verdict(r, K)
+    assert "The best candidate, background_flow, lowers it by 6% (t = 1.5)" in v["explanation"]
+    assert "Clues: none stand out." in v["explanation"]
+    r = result(2.0, 0.4, steps=[step("wall_drag", 2.0, 0.5)], joint_left=0.5)
+    del r["stepwise"]["dropped"]
+    assert verdict(r, K)["explanation"].startswith("wall_drag explains the error")
+    r = result(1.0, 0.2, ranking=[cand("wall_drag", 0.05, 1.0)], discovered=found(0.5))
+    del r["ranking"][0]["identifiable"]
+    assert "(the best listed effect, wall_drag, lowers it by only 5%)" in verdict(r, K)["explanation"]
+    r = result(1.0, 0.4, ranking=[cand("wall_drag", 0.3, 4.0, params={"wall_drag.k": {}}, conditioning={})])
+    del r["ranking"][0]["identifiable"]
+    assert fit_notes(r) == []  # no trade-offs listed; not "not identifiable"
+    r["ranking"][0]["conditioning"] = {"at_bound": ["wall_drag.k"]}
+    assert fit_notes(r) == ["wall_drag.k of wall_drag sits at a bound of its range: the fit wants more than the "
+                            "form allows"]
+
+
+def test_the_discovered_margin_is_a_share_of_what_is_left():
+    """2.0 mm left by the named effect: a form must reach 1.4 mm (70 % of it); 1.41 mm is not enough."""
+    def status(after):
+        r = result(4.0, 0.2, steps=[step("wall_drag", 4.0, 2.0)], joint_left=2.0, discovered=found(after))
+        return verdict(r, K)["status"]
+
+    assert status(1.4) == "discovered" and status(1.41) == "explained"
+
+
+def test_the_degenerate_baseline_note_in_full_and_notes_of_the_best_identifiable_candidate():
+    r = result(1.0, 0.4, ranking=[
+        cand("swirl", 0.5, 5.0, identifiable=False, params={"swirl.k": {}},
+             conditioning={"tradeoffs": [("swirl.k", "Cd1", 0.99)], "at_bound": ["swirl.k"]}),
+        cand("wall_drag", 0.3, 4.0, params={"wall_drag.k": {}, "wall_drag.h": {}},
+             conditioning={"at_bound": ["wall_drag.k", "wall_drag.h"]}),
+        cand("lift", 0.0, 0.0, identifiable=False)])
+    r["baseline"]["conditioning"] = {"at_bound": ["Cd1"]}
+    assert fit_notes(r) == [
+        "the baseline fit is degenerate: its linear drag Cd1 sits at its bound 0, so it predicts that the swimmer "
+        "keeps any velocity it has; the model's form cannot represent these logs, and what is missing changes how "
+        "the speed responds to the command (a step-out, a lag, a drag law) more than a small extra force would",
+        "wall_drag.k, wall_drag.h of wall_drag sits at a bound of its range: the fit wants more than the form allows",
+        "not identifiable from these logs: swirl, lift (their parameters do not change the predictions: the logs "
+        "never reach the conditions where they act)"]
+
+
+def test_block_t_averages_each_block_whatever_its_size():
+    """Blocks of two start rows with row 3 missing: block means 1, 2, 3 from blocks of 2, 1 and 2 windows."""
+    d = np.array([1.0, 1.0, 2.0, 3.0, 3.0])
+    assert _block_t(d, np.array([0, 1, 2, 4, 5]), 2) == pytest.approx(2.0 * np.sqrt(3.0))
+
+
+def test_four_windows_valid_in_both_are_enough_for_a_t():
+    ref = {"valid": np.ones(4, bool), "err": np.array([[2.0, 0, 0], [3.0, 0, 0], [5.0, 0, 0], [4.0, 0, 0]])}
+    cand_ = {"valid": np.ones(4, bool), "err": np.zeros((4, 3))}
+    want = np.mean([2.0, 3.0, 5.0, 4.0]) / (np.std([2.0, 3.0, 5.0, 4.0], ddof=1) / 2.0)
+    assert paired_t(ref, cand_, np.arange(4), 1) == pytest.approx(want)
+    assert paired_t_horizons({K: ref}, {K: cand_}, np.arange(4), 1) == pytest.approx(want)
+
+
+def test_a_quarter_of_the_excess_exactly_is_enough():
+    """1.0 -> 0.75 mm over a zero floor removes 0.25 of the excess exactly."""
+    assert passes({"reduction": 0.25, "t_stat": 5.0, "rollout_mm": {K: 0.75}}, 1.0, 0.0, K)
