@@ -106,6 +106,9 @@ EQUIVALENT: dict[str, str] = {
         "_steps_text called without steps too: with none chosen none is dropped, and it returns ''",
     'cosim_plugins.diagnose.verdict.x_fit_notes__mutmut_35':
         'a missing condition number read as 1.0 for 0.0: both are far below NOTE_CONDITION (1e8)',
+    # convert.py
+    'cosim_plugins.identify.convert.x_read_positions__mutmut_46':
+        'pixel_mm < 0 for <= 0: a zero pixel size is refused by `not pixel_mm` just before',
     # raw_log.py
     'cosim_plugins.raw_log.x__clean__mutmut_6':
         'raw[:, 4:8] for 4:7: the array has 7 columns, slicing past the last is the same',

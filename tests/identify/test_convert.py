@@ -193,3 +193,66 @@ def test_the_summary_counts_rows_measured_detections_and_those_outside(tmp_path,
     printed = capsys.readouterr().out
     assert printed.strip() == (f"wrote {out}: 6 rows of 20 ms (0.1 s), 2 with a position from 4 detections; "
                                "2 detections lie outside the commands' time span and were left out")
+
+
+# ---------------------------------------------------------------- each refusal's words in full
+
+
+def _refused(tmp_path, capsys, cmd_text=None, pos_text="t_s,x,y,z\n0,1,2,3\n", *args):
+    """The message `cosim convert` ends with (exit 2) on these files' texts; a None command text: no file."""
+    cmd, pos = tmp_path / "c.csv", tmp_path / "p.csv"
+    if cmd_text is not None:
+        cmd.write_text(cmd_text)
+    pos.write_text(pos_text)
+    code = main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv"), *args])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err, err
+    return err[-1].replace(str(tmp_path), "DIR")
+
+
+@pytest.mark.parametrize("cmd_text, message", [
+    (None, "DIR/c.csv: no such file"),
+    ("", "DIR/c.csv: empty file"),
+    ("t_s,omega_x,omega_y,omega_z\n", "DIR/c.csv: no data rows"),
+    ("t_s,omega_x,omega_y,omega_z\n\n  \n", "DIR/c.csv: no data rows"),  # blank lines are no rows
+    ("t_s,omega_x,omega_y,omega_z\n0,1,2,3\n0.1,1,two,3\n", "DIR/c.csv line 3: not a number in '0.1,1,two,3'"),
+    # the third row goes back: its line (4) and its time are named, not its neighbour's
+    ("t_s,omega_x,omega_y,omega_z\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n0.3,1,2,3\n",
+     "DIR/c.csv line 4: time 0.1 s does not increase"),
+])
+def test_each_refusal_of_a_commands_file_in_full(tmp_path, capsys, cmd_text, message):
+    assert _refused(tmp_path, capsys, cmd_text).endswith(message)
+
+
+def test_blank_lines_between_rows_are_skipped_not_the_end(tmp_path, capsys):
+    """A blank line after the first row: the rows after it are still read (the log spans 0..0.1 s)."""
+    cmd = tmp_path / "c.csv"
+    cmd.write_text("t_s,omega_x,omega_y,omega_z\n0,0,0,6\n\n0.1,0,0,6\n")
+    pos = _write(tmp_path / "p.csv", "t_s,x,y,z", [[0.0, 1.0, 2.0, 3.0]])
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv")]) == 0
+    assert read_log(tmp_path / "o.csv").n == 6
+
+
+def test_the_pixel_size_and_unit_refusals_in_full(tmp_path, capsys):
+    from cosim.contract.errors import UserError
+    from cosim_plugins.identify.convert import read_positions
+
+    cmd_text = "t_s,omega_x,omega_y,omega_z\n0,0,0,6\n0.1,0,0,6\n"
+    assert _refused(tmp_path, capsys, cmd_text, "t_s,x,y,z\n0,1,2,3\n", "--unit", "px").endswith(
+        "positions in px need --pixel-mm (the size of one pixel in the tank, e.g. 0.19)")
+    with pytest.raises(UserError) as err:
+        read_positions(_write(tmp_path / "p2.csv", "t_s,x,y,z", [[0.0, 1.0, 2.0, 3.0]]), "inch")
+    assert str(err.value) == "position unit 'inch': use mm, m or px"
+
+
+def test_a_command_at_a_row_within_the_rounding_slack_is_held_from_that_row():
+    """The grid's rows are compared with the commands' times 1e-9 periods late, so a command that rounding put a
+    hair after a row (exactly that slack here) is held from that row, not from the next."""
+    from cosim_plugins.identify.convert import to_raw_log
+
+    dt = 0.02
+    late = 0.04 + 1e-9 * dt  # the third row's time and the slack, as the grid computes them
+    cmd_t = np.array([0.0, late, 0.1])
+    omega = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 2.0], [0.0, 0.0, 3.0]])
+    _, held, _ = to_raw_log(cmd_t, omega, np.array([0.0]), np.zeros((1, 3)), dt)
+    np.testing.assert_array_equal(held[:, 2], [1.0, 1.0, 2.0, 2.0, 2.0, 3.0])
