@@ -109,6 +109,8 @@ EQUIVALENT: dict[str, str] = {
     # convert.py
     'cosim_plugins.identify.convert.x_read_positions__mutmut_46':
         'pixel_mm < 0 for <= 0: a zero pixel size is refused by `not pixel_mm` just before',
+    'cosim_plugins.identify.convert.x_read_commands__mutmut_82':
+        'a zero axis divided by 2.0 for 1.0: such a row has freq_hz 0 (others are refused), so the numerator is 0',
     # raw_log.py
     'cosim_plugins.raw_log.x__clean__mutmut_6':
         'raw[:, 4:8] for 4:7: the array has 7 columns, slicing past the last is the same',
