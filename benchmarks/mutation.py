@@ -111,6 +111,28 @@ EQUIVALENT: dict[str, str] = {
         'pixel_mm < 0 for <= 0: a zero pixel size is refused by `not pixel_mm` just before',
     'cosim_plugins.identify.convert.x_read_commands__mutmut_82':
         'a zero axis divided by 2.0 for 1.0: such a row has freq_hz 0 (others are refused), so the numerator is 0',
+    # interlocks.py
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_2':
+        "the NaN test of the amplitudes disabled: the driver never hands limit_scale a NaN (a non-finite omega trips "
+        "unsafe_command before any amplitude is computed; a finite omega gives finite amplitudes)",
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_10':
+        'max(*amp_v) for max(0.0, *amp_v): the six amplitudes are magnitudes, never below zero',
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_36':
+        'amp / scale > prev + rise for amp * scale: a coil this adds has (prev + rise) / amp >= scale, so the '
+        'minimum, the scale, is unchanged',
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_37':
+        'amp * scale >= prev + rise for >: a coil this adds has (prev + rise) / amp == scale, the minimum unchanged',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁ__init____mutmut_19':
+        'ring rows of 7 entries: zip stops at the six coils',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁ__init____mutmut_25':
+        'an energy list of 7 entries: zip stops at the six coils',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁadd__mutmut_18':
+        'the ring walked backwards: the slot replaced is still the one written window_ticks ticks ago',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁadd__mutmut_21':
+        '< for <= against the budget: at exact equality it falls through to the coils over budget, an empty list',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁadd__mutmut_24':
+        '>= in the list of coils over budget: it runs only when a coil is strictly over, and the hottest, the one '
+        'named, is then strictly over too',
     # raw_log.py
     'cosim_plugins.raw_log.x__clean__mutmut_6':
         'raw[:, 4:8] for 4:7: the array has 7 columns, slicing past the last is the same',
