@@ -129,14 +129,22 @@ def test_messages_list_several_ports_comma_separated():
     assert str(err.value) == "components.controller.inputs: not wired: position, velocity"
 
 
-def test_a_cycle_is_named_by_its_own_edges_not_those_into_it_or_delayed():
-    """summer and gain in an undelayed loop, an adder fed by a source (ordered) and by gain: the message lists the
-    undelayed edges among the components left unordered, never the source's edge into them or a delayed one."""
+def test_a_cycle_is_named_by_the_edges_among_what_is_left_not_those_into_it_or_delayed():
+    """summer and gain in an undelayed loop; an adder fed by a source (ordered first) and by gain (so it waits on
+    the loop too); a probe fed by gain over a delayed edge. The message lists the undelayed edges among the
+    components left unordered: the loop's and gain's into the adder, never the source's edge into them, nor the
+    delayed one (the probe, reading gain only a tick late, is ordered)."""
     with pytest.raises(WiringError) as err:
         wiring_of("components.summer.inputs.u.delay=0", "components.src={plugin: test.source}",
-                  "components.adder={plugin: test.adder, inputs: {a: src.u, b: {from: gain.u, delay: 1}}}")
+                  "components.adder={plugin: test.adder, inputs: {a: src.u, b: gain.u}}",
+                  "components.probe={plugin: test.summer, inputs: {u: {from: gain.u, delay: 1}}}")
     assert str(err.value) == ("cycle without a delayed edge (mark one edge delay: 1): "
-                              "gain.u -> summer.u; summer.y -> gain.y")
+                              "gain.u -> summer.u; summer.y -> gain.y; gain.u -> adder.b")
+    with pytest.raises(WiringError) as err:  # the delayed edge inside what is left: a loop of three, one edge delayed
+        wiring_of("components.summer.inputs.u.delay=0", "components.adder={plugin: test.adder, inputs: "
+                  "{a: gain.u, b: {from: summer.y, delay: 1}}}")
+    assert str(err.value) == ("cycle without a delayed edge (mark one edge delay: 1): "
+                              "gain.u -> summer.u; summer.y -> gain.y; gain.u -> adder.a")
 
 
 def test_a_component_without_inputs_or_outputs_is_said_to_have_none():
