@@ -133,6 +133,41 @@ EQUIVALENT: dict[str, str] = {
     'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁadd__mutmut_24':
         '>= in the list of coils over budget: it runs only when a coil is strictly over, and the hottest, the one '
         'named, is then strictly over too',
+    # ekf.py
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_3':
+        "a linear model's matrices with dtype=None: used in products and sums with float matrices, integers give "
+        "the same numbers",
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_5':
+        "a linear model's matrices without dtype: integers give the same products and sums",
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_12':
+        "getattr(model, 'dt_s') without a default: every model has dt_s (the base class sets it)",
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_25':
+        '>= 1e-9 for > 1e-9 in the period check: differs only when the rounding slack is met exactly',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_8':
+        'q with dtype=None: integer variances give the same float covariances (P is float, Q scaled by a float)',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_10':
+        'q without dtype: integer variances give the same float covariances',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_31':
+        'R with dtype=None: integer variances add to the float P alike',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_33':
+        'R without dtype: integer variances add to the float P alike',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_78':
+        '_since = None before start: start() sets it to 0 before any predict',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_79':
+        '_since = 1 before start: start() sets it to 0 before any predict',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁstart__mutmut_12':
+        '_since = 1 at start: a nonlinear model starts without a Jacobian, which forces a refresh that resets '
+        '_since; a linear model never reads it',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁpredict__mutmut_33':
+        "-pz in the finiteness sum: positions are within the tank (checked beside it), far too small to tip a "
+        "sum's overflow (float spacing near 1e308 is ~1e292)",
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁpredict__mutmut_34':
+        "-py in the finiteness sum: positions within the tank cannot tip a sum's overflow",
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁpredict__mutmut_100':
+        'speed2 >= v_max**2 for >: at equality the scale factor is 1',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁupdate__mutmut_3':
+        'adapt_rate >= 0 for > 0: with rate 0 the adaptation leaves the scale at exp(0) and rebuilds the same Q '
+        '(the NIS is finite: the component passes only finite frames)',
     # raw_log.py
     'cosim_plugins.raw_log.x__clean__mutmut_6':
         'raw[:, 4:8] for 4:7: the array has 7 columns, slicing past the last is the same',
