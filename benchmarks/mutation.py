@@ -283,6 +283,12 @@ EQUIVALENT: dict[str, str] = {
         "_dataset's default profile: its one caller always passes the scenario's",
     'cosim_plugins.estimators.kalman.x__dataset__mutmut_6':
         'glob() for a pattern without wildcards too: it returns the name when the file exists, [] when not',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_24':
+        'a snapshot of the unstarted filter kept for a tick before the first frame: that entry is read only by '
+        'the first frame (restore leaves started False, so it starts the filter alike); later entries are '
+        'rewritten with started snapshots when a frame is fused, and a constant latency delivers no frame older',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_frame__mutmut_4':
+        'the history sliced with latency 0 too: with latency 0 nothing is appended, the slice of it is []',
     # stepper.py
     'cosim.runtime.stepper.x_setup_component__mutmut_8':
         "getattr(component, 'uses_path', None): None is false, as False is",
