@@ -81,6 +81,11 @@ TARGETS = (  # cheap and most dangerous first: a run cut short still has their f
            ("tests/identify/test_identify_data.py", "tests/identify/test_raw_log_outliers.py",
             "tests/identify/test_raw_log_format.py")),
     Target("convert", "cosim_plugins/identify/convert.py", ("tests/identify/test_convert.py",)),
+    # the verdict on hand-made results (milliseconds a test): its gates at their edges and its words, case by case
+    Target("verdict", "cosim_plugins/diagnose/verdict.py",
+           ("tests/diagnose/test_verdict.py", "tests/diagnose/test_stepwise_parts.py",
+            "tests/diagnose/test_diagnose_parts.py",
+            "-k", "test_verdict or naming_gates or unidentifiable or verdict_names")),
     Target("inverse", "cosim_plugins/coil_driver/inverse.py",
            ("tests/coil_driver/test_coil_visa.py", "tests/coil_driver/test_coil_daq.py", *COIL_TESTS),
            timeout_s=180.0),
@@ -92,6 +97,77 @@ TARGETS = (  # cheap and most dangerous first: a run cut short still has their f
 
 #: Survivors that no input the module can receive tells from the original: {mutant: why}.
 EQUIVALENT: dict[str, str] = {
+    # verdict.py
+    'cosim_plugins.diagnose.verdict.x__clues_text__mutmut_3':
+        "localisation without clues read as None for []: both are false, 'none stand out' either way",
+    'cosim_plugins.diagnose.verdict.x__clues_text__mutmut_5':
+        "localisation without clues read as None (get without a default) for []: both false, the same words",
+    'cosim_plugins.diagnose.verdict.x__verdict__mutmut_61':
+        "_steps_text called without steps too: with none chosen none is dropped, and it returns ''",
+    'cosim_plugins.diagnose.verdict.x_fit_notes__mutmut_35':
+        'a missing condition number read as 1.0 for 0.0: both are far below NOTE_CONDITION (1e8)',
+    # convert.py
+    'cosim_plugins.identify.convert.x_read_positions__mutmut_46':
+        'pixel_mm < 0 for <= 0: a zero pixel size is refused by `not pixel_mm` just before',
+    'cosim_plugins.identify.convert.x_read_commands__mutmut_82':
+        'a zero axis divided by 2.0 for 1.0: such a row has freq_hz 0 (others are refused), so the numerator is 0',
+    # interlocks.py
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_2':
+        "the NaN test of the amplitudes disabled: the driver never hands limit_scale a NaN (a non-finite omega trips "
+        "unsafe_command before any amplitude is computed; a finite omega gives finite amplitudes)",
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_10':
+        'max(*amp_v) for max(0.0, *amp_v): the six amplitudes are magnitudes, never below zero',
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_36':
+        'amp / scale > prev + rise for amp * scale: a coil this adds has (prev + rise) / amp >= scale, so the '
+        'minimum, the scale, is unchanged',
+    'cosim_plugins.coil_driver.interlocks.x_limit_scale__mutmut_37':
+        'amp * scale >= prev + rise for >: a coil this adds has (prev + rise) / amp == scale, the minimum unchanged',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁ__init____mutmut_19':
+        'ring rows of 7 entries: zip stops at the six coils',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁ__init____mutmut_25':
+        'an energy list of 7 entries: zip stops at the six coils',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁadd__mutmut_18':
+        'the ring walked backwards: the slot replaced is still the one written window_ticks ticks ago',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁadd__mutmut_21':
+        '< for <= against the budget: at exact equality it falls through to the coils over budget, an empty list',
+    'cosim_plugins.coil_driver.interlocks.xǁThermalBudgetǁadd__mutmut_24':
+        '>= in the list of coils over budget: it runs only when a coil is strictly over, and the hottest, the one '
+        'named, is then strictly over too',
+    # ekf.py
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_3':
+        "a linear model's matrices with dtype=None: used in products and sums with float matrices, integers give "
+        "the same numbers",
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_5':
+        "a linear model's matrices without dtype: integers give the same products and sums",
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_12':
+        "getattr(model, 'dt_s') without a default: every model has dt_s (the base class sets it)",
+    'cosim_plugins.estimators.ekf.x_linear_step__mutmut_25':
+        '>= 1e-9 for > 1e-9 in the period check: differs only when the rounding slack is met exactly',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_8':
+        'q with dtype=None: integer variances give the same float covariances (P is float, Q scaled by a float)',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_10':
+        'q without dtype: integer variances give the same float covariances',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_31':
+        'R with dtype=None: integer variances add to the float P alike',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_33':
+        'R without dtype: integer variances add to the float P alike',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_78':
+        '_since = None before start: start() sets it to 0 before any predict',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁ__init____mutmut_79':
+        '_since = 1 before start: start() sets it to 0 before any predict',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁstart__mutmut_12':
+        '_since = 1 at start: a nonlinear model starts without a Jacobian, which forces a refresh that resets '
+        '_since; a linear model never reads it',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁpredict__mutmut_33':
+        "-pz in the finiteness sum: positions are within the tank (checked beside it), far too small to tip a "
+        "sum's overflow (float spacing near 1e308 is ~1e292)",
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁpredict__mutmut_34':
+        "-py in the finiteness sum: positions within the tank cannot tip a sum's overflow",
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁpredict__mutmut_100':
+        'speed2 >= v_max**2 for >: at equality the scale factor is 1',
+    'cosim_plugins.estimators.ekf.xǁMultiStepEKFǁupdate__mutmut_3':
+        'adapt_rate >= 0 for > 0: with rate 0 the adaptation leaves the scale at exp(0) and rebuilds the same Q '
+        '(the NIS is finite: the component passes only finite frames)',
     # raw_log.py
     'cosim_plugins.raw_log.x__clean__mutmut_6':
         'raw[:, 4:8] for 4:7: the array has 7 columns, slicing past the last is the same',
@@ -207,6 +283,30 @@ EQUIVALENT: dict[str, str] = {
         "_dataset's default profile: its one caller always passes the scenario's",
     'cosim_plugins.estimators.kalman.x__dataset__mutmut_6':
         'glob() for a pattern without wildcards too: it returns the name when the file exists, [] when not',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁstep__mutmut_24':
+        'a snapshot of the unstarted filter kept for a tick before the first frame: that entry is read only by '
+        'the first frame (restore leaves started False, so it starts the filter alike); later entries are '
+        'rewritten with started snapshots when a frame is fused, and a constant latency delivers no frame older',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_frame__mutmut_4':
+        'the history sliced with latency 0 too: with latency 0 nothing is appended, the slice of it is []',
+    'cosim_plugins.estimators.kalman.x__resolve__mutmut_1':
+        "_resolve's default profile: both callers pass the scenario's",
+    'cosim_plugins.estimators.kalman.x__resolve__mutmut_2':
+        "_resolve's default profile: both callers pass the scenario's",
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_frame__mutmut_8':
+        'the history sliced one entry further back: it holds latency + 1 entries (its maxlen), the slice is the same',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_frame__mutmut_14':
+        'started = None for False: only ever read as a truth value',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁsetup__mutmut_80':
+        'gate_prob > 1.0 for >= 1.0: at 1.0 the chi-square quantile is inf too, and gate_prob is at most 1',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁsetup__mutmut_81':
+        'gate_prob >= 2.0 for >= 1.0: gate_prob is at most 1 (its range), and chi2.ppf(1.0, 3) is inf',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_process_noise__mutmut_5':
+        'q_diag with dtype=None: its entries are checked to be numbers; integers give the same float covariances',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_process_noise__mutmut_7':
+        'q_diag without dtype: integers give the same float covariances',
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_process_noise__mutmut_40':
+        ">= 1e-6 for > 1e-6 in the logs' period check: differs only when the rounding slack is met exactly",
     # stepper.py
     'cosim.runtime.stepper.x_setup_component__mutmut_8':
         "getattr(component, 'uses_path', None): None is false, as False is",

@@ -166,16 +166,27 @@ def _hosts(d: dict) -> str:
     return f"{o['two_hosts_tls']['realtime_factor']:g}x / {o['loopback_tcp']['realtime_factor']:g}x real time, {same}"
 
 
+def _mutation_runs(d: dict) -> list[dict]:
+    """What each run of ``benchmarks/mutation.py`` kept in ``d`` printed, in order (the first tests every mutant,
+    a later one the survivors again against the tests added since)."""
+    return d["output"] if isinstance(d["output"], list) else [d["output"]]
+
+
 def _mutation(d: dict) -> str:
-    out = d["output"]
+    """A data file's modules, as the last run printed them; the time is every run's."""
+    runs = _mutation_runs(d)
+    times = " + ".join(f"{r['seconds']:.0f}" for r in runs if "seconds" in r)
     parts = []
-    for label, m in out["modules"].items():
-        reached = f", {m['not_reached']} of {m['not_reached_of']} not reached" if "not_reached" in m else ""
-        of_ = m["of"] if "of" in m else m["mutants"] - m["equivalent"]  # printed: mutants less the equivalent
-        parts.append(f"{label} {m['score']:.3f} ({m['killed']} of {of_}{reached})")
-    first = out.get("first_run_not_repeated")
-    text = ", ".join(parts)
-    return text + (f"; first run, not repeated: {', '.join(f'{k} {v:.3f}' for k, v in first.items())}" if first else "")
+    for path, m in runs[-1]["modules"].items():
+        cut = f", {m['untested']} not reached" if m.get("untested") else ""
+        parts.append(f"`{path.rsplit('/', 1)[-1]}` {m['score']:.3f} ({m['killed']} of "
+                     f"{m['mutants'] - m['equivalent']}{cut})")
+    return ", ".join(parts) + f"; {times or '-'} s"
+
+
+#: the kept runs of benchmarks/mutation.py, one module (or two) each, in the benchmark's order of targets
+MUTATION_DATA = ("mutation_interlocks", "mutation_wiring", "mutation_ekf", "mutation_noise",
+                 "mutation_stepper_portcache", "mutation_raw_log", "mutation_convert", "mutation_verdict")
 
 
 def _soak(d: dict) -> str:
@@ -236,7 +247,7 @@ ROWS = (
         "hosts, without the network) against loopback TCP", "-", ("hosts_loop",), _hosts),
     Row("mutation.py", "mutmut on the modules where a silent bug is dangerous, each with its own tests: score, "
         "killed of mutants less equivalent ([Testing](testing.md))", ">= 0.85 a module",
-        ("mutation_stepper_portcache", "mutation"), _mutation),
+        MUTATION_DATA, _mutation),
     Row("soak.py", "the racetrack for hours of simulated time (1 h and 12 h in one process, 1 h and 12 h with "
         "`--processes`): peak memory", "12 h peak within 10 % of 1 h, both <= 400 MB",
         ("soak_processes_bounded", "soak_one_process", "soak_processes"), _soak),
@@ -257,6 +268,22 @@ def benchmarks_table() -> str:
 
 
 # ---------------------------------------------------------------- the diagnose pages
+
+
+def mutation_table() -> str:
+    """docs/testing.md: each mutated module's figures as its last run printed them, and every run's time."""
+    rows = []
+    for name in MUTATION_DATA:
+        d = load(name)
+        runs = _mutation_runs(d)
+        for path, m in runs[-1]["modules"].items():
+            times = " + ".join(f"{r['modules'][path]['seconds']:.0f}" for r in runs
+                               if "seconds" in r["modules"].get(path, {}))
+            rows.append([f"`{path}`", str(m["mutants"]), f"{m['killed']} ({m['hung']})", str(m["equivalent"]),
+                         f"{m['score']:.3f}", str(m.get("untested", 0)), str(len(m["survived"])), times or "-",
+                         f"{when(d)}, {d['commit']}, [data](benchmarks/data/{name}.json)"])
+    return table(["module", "mutants", "killed (hung)", "equivalent", "score", "not reached", "survived",
+                  "seconds (each run)", "measured"], rows)
 
 
 def archive_table() -> str:
@@ -439,6 +466,7 @@ SOAK_TABLES = {"soak-hours-1-12": ("soak_one_process", "soak_processes_first"),
 #: Every table a page may mark, by name: what renders it (from the data files it loads).
 TABLES: dict[str, Callable[[], str]] = {
     "benchmarks": benchmarks_table,
+    "mutation": mutation_table,
     "diagnose-archive": archive_table,
     "diagnose-drift-bench": drift_table,
     "diagnose-several-effects-bench": several_effects_table,

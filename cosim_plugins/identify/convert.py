@@ -144,7 +144,8 @@ def convert(commands: Path, positions: Path, out: Path, dt_s: float, unit: str =
     t, om, pos = to_raw_log(cmd_t, omega, pos_t, p, dt_s)
     out.parent.mkdir(parents=True, exist_ok=True)
     t_ms = t * 1e3
-    write_log(out, np.round(t_ms) if np.allclose(t_ms, np.round(t_ms), atol=1e-6) else t_ms, om, pos)
+    # whole milliseconds (to 1 ns, absolute: a relative tolerance would round a long log's 0.1 us per row away)
+    write_log(out, np.round(t_ms) if np.allclose(t_ms, np.round(t_ms), rtol=0.0, atol=1e-6) else t_ms, om, pos)
     outside = int(np.sum((pos_t < cmd_t[0] - dt_s / 2) | (pos_t > cmd_t[-1] + dt_s / 2)))
     return {"rows": len(t), "measured": int(np.all(np.isfinite(pos), axis=1).sum()), "detections": len(pos_t),
             "outside": outside, "duration_s": float(t[-1])}

@@ -127,3 +127,39 @@ def test_messages_list_several_ports_comma_separated():
     with pytest.raises(WiringError) as err:
         build_wiring(load_scenario(racetrack, ["components.controller.inputs={}"]))
     assert str(err.value) == "components.controller.inputs: not wired: position, velocity"
+
+
+def test_a_cycle_is_named_by_the_edges_among_what_is_left_not_those_into_it_or_delayed():
+    """summer and gain in an undelayed loop; an adder fed by a source (ordered first) and by gain (so it waits on
+    the loop too); a probe fed by gain over a delayed edge. The message lists the undelayed edges among the
+    components left unordered: the loop's and gain's into the adder, never the source's edge into them, nor the
+    delayed one (the probe, reading gain only a tick late, is ordered)."""
+    with pytest.raises(WiringError) as err:
+        wiring_of("components.summer.inputs.u.delay=0", "components.src={plugin: test.source}",
+                  "components.adder={plugin: test.adder, inputs: {a: src.u, b: gain.u}}",
+                  "components.probe={plugin: test.summer, inputs: {u: {from: gain.u, delay: 1}}}")
+    assert str(err.value) == ("cycle without a delayed edge (mark one edge delay: 1): "
+                              "gain.u -> summer.u; summer.y -> gain.y; gain.u -> adder.b")
+    with pytest.raises(WiringError) as err:  # the delayed edge inside what is left: a loop of three, one edge delayed
+        wiring_of("components.summer.inputs.u.delay=0", "components.adder={plugin: test.adder, inputs: "
+                  "{a: gain.u, b: {from: summer.y, delay: 1}}}")
+    assert str(err.value) == ("cycle without a delayed edge (mark one edge delay: 1): "
+                              "gain.u -> summer.u; summer.y -> gain.y; gain.u -> adder.a")
+
+
+def test_a_component_without_inputs_or_outputs_is_said_to_have_none():
+    with pytest.raises(WiringError) as err:
+        wiring_of("components.src={plugin: test.source, inputs: {y: summer.y}}")
+    assert str(err.value) == "components.src.inputs.y: test.source has no input 'y' (inputs: none)"
+    with pytest.raises(WiringError) as err:
+        wiring_of("components.adder={plugin: test.adder, inputs: {a: gain.u, b: gain.u}}",
+                  "components.summer.inputs.u.from=adder.u")
+    assert str(err.value) == "components.summer.inputs.u: adder has no output 'u' (outputs: none)"
+
+
+def test_the_table_of_a_run_until_stopped_and_of_several_unused_outputs():
+    scenario, w = wiring_of("duration_s=null", "components.p1={plugin: test.summer, inputs: {u: gain.u}}",
+                            "components.p2={plugin: test.summer, inputs: {u: gain.u}}")
+    lines = connection_table(scenario, w).splitlines()
+    assert lines[0] == "scenario loop: 4 components, dt 20 ms, until stopped"
+    assert lines[-1] == "unused outputs: p1.y, p2.y"

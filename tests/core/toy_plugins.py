@@ -123,6 +123,38 @@ class VoltGain(Gain):
     outputs = (Port("u", (1,), "V"),)
 
 
+class Source(Component):
+    """A constant for wiring tests: no inputs, output u = ``u0``."""
+
+    inputs = ()
+    outputs = (Port("u", (1,), "1"),)
+
+    def setup(self, params, rng):
+        self.u = np.array([float(params.get("u0", 0.0))])
+
+    def initial_outputs(self):
+        return {"u": self.u.copy()}
+
+    def step(self, t, inputs):
+        return {"u": self.u.copy()}
+
+
+class Adder(Component):
+    """A sink for wiring tests: two inputs a, b, no outputs (it only reads)."""
+
+    inputs = (Port("a", (1,), "1"), Port("b", (1,), "1"))
+    outputs = ()
+
+    def setup(self, params, rng):
+        pass
+
+    def initial_outputs(self):
+        return {}
+
+    def step(self, t, inputs):
+        return {}
+
+
 @hookimpl
 def cosim_register_components(register):
     register("test.kinematic", KinematicPlant)
@@ -130,3 +162,5 @@ def cosim_register_components(register):
     register("test.summer", Summer)
     register("test.gain", Gain)
     register("test.volt_gain", VoltGain)
+    register("test.source", Source)
+    register("test.adder", Adder)

@@ -280,3 +280,19 @@ def test_integer_initial_variances_still_give_the_cameras_variance_on_the_positi
     ekf = MultiStepEKF(linear_plugin.LinearSwimmer(), DT, Q6, R, [1, 1, 1, 400, 400, 400])
     ekf.start(np.zeros(3))
     np.testing.assert_array_equal(np.diag(ekf.P), np.concatenate([R, [400.0] * 3]))
+
+
+@pytest.mark.parametrize("huge", [(3, 4), (4, 5), (3, 5)], ids=["vx vy", "vy vz", "vx vz"])
+def test_a_diverging_prediction_whose_sum_overflows_is_a_constant_velocity_step(huge):
+    """Two velocities of 1e308 mm/s, each finite, sum to inf: the model left its domain as surely as with a NaN,
+    and the step goes on at constant velocity (not through the speed limit, which would zero the velocity)."""
+    x0 = np.array([1.0, -2.0, 3.0, 10.0, -20.0, 30.0])
+    nxt = [1.5, -2.5, 3.5, 11.0, -21.0, 31.0]
+    for axis in huge:
+        nxt[axis] = 1e308
+    model = Scripted()
+    model.next = nxt
+    ekf = _started(model, x0, tank=75.0, v_max=65.0, relinearize_steps=1000)
+    ekf._F, ekf._since = np.eye(6), 0
+    ekf.predict(np.zeros(3))
+    np.testing.assert_allclose(ekf.x, np.concatenate([x0[:3] + DT * x0[3:], x0[3:]]), rtol=1e-15)

@@ -134,3 +134,53 @@ def test_validate_refuses_a_model_of_the_wrong_state_size(linear_kinds, tmp_path
     path = model.save(tmp_path / "four.npz")
     code, err = _validate(capsys, path)
     assert code == 2 and "('test-linear') cannot predict a 6-state [p mm, v mm/s] with 3 inputs" in err
+
+
+# ---------------------------------------------------------------- what setup hands the filter
+
+
+def test_setup_hands_the_filter_every_parameter(linear_file):
+    """The gate is the chi-square (3 dof) quantile of gate_prob; the initial velocity variance v0^2; the rest as
+    given (against the filter's own defaults, which differ: 3 rejections, every step, no limits, no adaptation)."""
+    from scipy.stats import chi2
+
+    kf = make_kf(linear_file, gate_prob=0.99, max_rejects=7, relinearize_steps=4, v_max_mm_s=55.0, tank_mm=60.0,
+                 adapt_rate=0.25, v0_mm_s=3.0)
+    f = kf.filter
+    assert f.gate == pytest.approx(chi2.ppf(0.99, 3), rel=1e-12) and f.gate == pytest.approx(11.3449, abs=1e-4)
+    assert (f.max_rejects, f.relinearize_steps, f.v_max, f.tank, f.adapt_rate) == (7, 4, 55.0, 60.0, 0.25)
+    np.testing.assert_allclose(f.p_init[3:6], 9.0, rtol=0)
+    assert make_kf(linear_file, gate_prob=1.0).filter.gate == np.inf
+
+
+def test_the_history_of_a_late_camera_holds_latency_plus_one_ticks(linear_file):
+    """A 60 ms latency keeps the filter's state of the last 4 ticks, however long the run (no growth)."""
+    truth, omega, frames = swim(linear_file, n=40)
+    kf = make_kf(linear_file, latency_s=0.06)
+    run(kf, omega, frames)
+    assert len(kf.history) == 4
+
+
+def test_latency_with_frames_closer_than_the_latency_fuses_each_as_if_on_time(linear_file):
+    """A frame every 2 ticks, each 60 ms (3 ticks) late: a frame's capture entry is one the previous frame
+    re-predicted, so it must hold that state (not forget it): each frame's innovation is the one it has when
+    fused on time, and the NIS too."""
+    truth, omega, frames = swim(linear_file)
+    frames[np.arange(len(frames)) % 2 != 0] = np.nan
+    late = np.full_like(frames, np.nan)
+    late[3:] = frames[:-3]
+    now = run(make_kf(linear_file), omega, frames)
+    then = run(make_kf(linear_file, latency_s=0.06), omega, late)
+    for c in range(2, len(frames) - 3, 2):  # each frame after the first, by its capture tick
+        np.testing.assert_allclose(then[c + 3]["innovation"], now[c]["innovation"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(then[c + 3]["nis"], now[c]["nis"], rtol=1e-9)
+
+
+@pytest.mark.parametrize("params, message", [
+    ({"q_logs": ["a.csv", 3]}, "parameter q_logs: expected a list of file paths or glob patterns"),
+    ({"max_rejects": 2.5}, "max_rejects and relinearize_steps must be whole numbers"),
+])
+def test_bad_parameters_are_refused_in_full(linear_file, params, message):
+    with pytest.raises(ComponentError) as err:
+        make_kf(linear_file, **params)
+    assert str(err.value) == message

@@ -193,3 +193,121 @@ def test_the_summary_counts_rows_measured_detections_and_those_outside(tmp_path,
     printed = capsys.readouterr().out
     assert printed.strip() == (f"wrote {out}: 6 rows of 20 ms (0.1 s), 2 with a position from 4 detections; "
                                "2 detections lie outside the commands' time span and were left out")
+
+
+# ---------------------------------------------------------------- each refusal's words in full
+
+
+def _refused(tmp_path, capsys, cmd_text=None, pos_text="t_s,x,y,z\n0,1,2,3\n", *args):
+    """The message `cosim convert` ends with (exit 2) on these files' texts; a None command text: no file."""
+    cmd, pos = tmp_path / "c.csv", tmp_path / "p.csv"
+    if cmd_text is not None:
+        cmd.write_text(cmd_text)
+    pos.write_text(pos_text)
+    code = main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv"), *args])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err, err
+    return err[-1].replace(str(tmp_path), "DIR")
+
+
+@pytest.mark.parametrize("cmd_text, message", [
+    (None, "DIR/c.csv: no such file"),
+    ("", "DIR/c.csv: empty file"),
+    ("t_s,omega_x,omega_y,omega_z\n", "DIR/c.csv: no data rows"),
+    ("t_s,omega_x,omega_y,omega_z\n\n  \n", "DIR/c.csv: no data rows"),  # blank lines are no rows
+    ("t_s,omega_x,omega_y,omega_z\n0,1,2,3\n0.1,1,two,3\n", "DIR/c.csv line 3: not a number in '0.1,1,two,3'"),
+    # the third row goes back: its line (4) and its time are named, not its neighbour's
+    ("t_s,omega_x,omega_y,omega_z\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n0.3,1,2,3\n",
+     "DIR/c.csv line 4: time 0.1 s does not increase"),
+])
+def test_each_refusal_of_a_commands_file_in_full(tmp_path, capsys, cmd_text, message):
+    assert _refused(tmp_path, capsys, cmd_text).endswith(message)
+
+
+def test_blank_lines_between_rows_are_skipped_not_the_end(tmp_path, capsys):
+    """A blank line after the first row: the rows after it are still read (the log spans 0..0.1 s)."""
+    cmd = tmp_path / "c.csv"
+    cmd.write_text("t_s,omega_x,omega_y,omega_z\n0,0,0,6\n\n0.1,0,0,6\n")
+    pos = _write(tmp_path / "p.csv", "t_s,x,y,z", [[0.0, 1.0, 2.0, 3.0]])
+    assert main(["convert", "--commands", str(cmd), "--positions", str(pos), "--out", str(tmp_path / "o.csv")]) == 0
+    assert read_log(tmp_path / "o.csv").n == 6
+
+
+def test_the_pixel_size_and_unit_refusals_in_full(tmp_path, capsys):
+    from cosim.contract.errors import UserError
+    from cosim_plugins.identify.convert import read_positions
+
+    cmd_text = "t_s,omega_x,omega_y,omega_z\n0,0,0,6\n0.1,0,0,6\n"
+    assert _refused(tmp_path, capsys, cmd_text, "t_s,x,y,z\n0,1,2,3\n", "--unit", "px").endswith(
+        "positions in px need --pixel-mm (the size of one pixel in the tank, e.g. 0.19)")
+    with pytest.raises(UserError) as err:
+        read_positions(_write(tmp_path / "p2.csv", "t_s,x,y,z", [[0.0, 1.0, 2.0, 3.0]]), "inch")
+    assert str(err.value) == "position unit 'inch': use mm, m or px"
+
+
+def test_a_command_at_a_row_within_the_rounding_slack_is_held_from_that_row():
+    """The grid's rows are compared with the commands' times 1e-9 periods late, so a command that rounding put a
+    hair after a row (exactly that slack here) is held from that row, not from the next."""
+    from cosim_plugins.identify.convert import to_raw_log
+
+    dt = 0.02
+    late = 0.04 + 1e-9 * dt  # the third row's time and the slack, as the grid computes them
+    cmd_t = np.array([0.0, late, 0.1])
+    omega = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 2.0], [0.0, 0.0, 3.0]])
+    _, held, _ = to_raw_log(cmd_t, omega, np.array([0.0]), np.zeros((1, 3)), dt)
+    np.testing.assert_array_equal(held[:, 2], [1.0, 1.0, 2.0, 2.0, 2.0, 3.0])
+
+
+@pytest.mark.parametrize("cmd_text, message", [
+    # a zero axis with a spin frequency of exactly 1 Hz is refused like any other frequency
+    ("t_s,axis_x,axis_y,axis_z,freq_hz\n0,0,0,1,2\n0.1,0,0,0,1\n",
+     "DIR/c.csv line 3: a spin frequency with a zero rotation axis"),
+    ("t_s,wx,wy,wz\n0,1,2,3\n", "DIR/c.csv: commands need omega_x,omega_y,omega_z [rad/s] or axis_x,axis_y,axis_z,"
+                                "freq_hz (header: t_s,wx,wy,wz)"),
+    # the first command with a missing field is named by its own line
+    ("t_s,omega_x,omega_y,omega_z\n0,1,2,3\n0.1,1,2,3\n0.2,1,,3\n0.3,1,2,\n",
+     "DIR/c.csv line 4: a command must be given in full (empty or NaN field)"),
+])
+def test_each_refusal_of_a_commands_content_in_full(tmp_path, capsys, cmd_text, message):
+    assert _refused(tmp_path, capsys, cmd_text).endswith(message)
+
+
+def test_a_zero_axis_at_zero_frequency_is_no_spin_and_the_axis_sets_the_direction(tmp_path):
+    from cosim_plugins.identify.convert import read_commands
+
+    cmd = tmp_path / "c.csv"
+    cmd.write_text("t_s,axis_x,axis_y,axis_z,freq_hz\n0,0,0,0,0\n0.1,0,3,4,2\n")
+    t, omega = read_commands(cmd)
+    np.testing.assert_array_equal(t, [0.0, 0.1])
+    np.testing.assert_allclose(omega, [[0.0, 0.0, 0.0], [0.0, 4 * np.pi * 0.6, 4 * np.pi * 0.8]], rtol=1e-12)
+
+
+def test_convert_reads_millimetres_unless_told(tmp_path):
+    from cosim_plugins.identify.convert import convert
+
+    cmd, pos = _files(tmp_path, [[0.0, 0, 0, 6.0], [0.1, 0, 0, 6.0]], [[0.0, 100.0, 200.0, -300.0]])
+    convert(cmd, pos, tmp_path / "log.csv", 0.02)
+    np.testing.assert_allclose(read_log(tmp_path / "log.csv").p_mm[0], [100.0, 200.0, -300.0], rtol=1e-9)
+
+
+@pytest.mark.parametrize("dt, t_ms", [
+    ("0.0125", ["0", "12.5", "25", "37.5"]),  # a period of a fraction of a millisecond: written as it is
+    ("0.0250001", ["0", "25.0001", "50.0002", "75.0003"]),  # 0.1 us a row off whole milliseconds: kept
+    ("0.0200000001", ["0", "20", "40", "60"]),  # 0.1 ns a row: whole milliseconds (within 1 ns)
+])
+def test_times_off_whole_milliseconds_are_written_as_they_are(tmp_path, capsys, dt, t_ms):
+    code, out, _ = _convert(tmp_path, capsys, [[0.0, 1.0, 2.0, 3.0]], "--dt", dt)
+    assert code == 0
+    assert [line.split(",")[0] for line in out.read_text().splitlines()[1:5]] == t_ms
+
+
+def test_detections_outside_the_commands_span_are_counted_to_half_a_period(tmp_path):
+    """Commands at 1, 1.5 and 2 s, dt = 0.25 s (exact in binary): the span with half a period either side is
+    [0.875, 2.125] s. Of detections at 0.6, 0.875, 0.9, 1.9, 2.125 and 2.3 s, the first and the last lie outside;
+    the edges themselves are inside. Rows at 1 and 2 s have one within half a period (0.9 and 1.9 s)."""
+    from cosim_plugins.identify.convert import convert
+
+    cmd, pos = _files(tmp_path, [[1.0, 0, 0, 6.0], [1.5, 0, 0, 6.0], [2.0, 0, 0, 6.0]],
+                      [[t, 1.0, 0.0, 0.0] for t in (0.6, 0.875, 0.9, 1.9, 2.125, 2.3)])
+    counts = convert(cmd, pos, tmp_path / "log.csv", 0.25)
+    assert counts == {"rows": 5, "measured": 2, "detections": 6, "outside": 2, "duration_s": 1.0}
