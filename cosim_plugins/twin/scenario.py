@@ -18,6 +18,7 @@ import yaml
 
 from cosim.contract.errors import UserError
 from cosim_plugins.twin import knobs as K
+from cosim_plugins.twin.host_forces import NAME as PAPER
 from cosim_plugins.twin.host_forces import effect_file_source
 
 DEFAULT_SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "racetrack.yaml"
@@ -51,14 +52,18 @@ def write_twin(cal, out: Path, scenario_path=None) -> Path:
     """Write ``out/twin.yaml`` and ``out/twin_effects.py`` for the calibration ``cal``; returns twin.yaml's path."""
     sc = copy.deepcopy(base_scenario(scenario_path))
     out.mkdir(parents=True, exist_ok=True)
-    (out / EFFECT_FILE).write_text(effect_file_source())
+    paper = any(e.name == PAPER for e in cal.effects)
+    if paper:
+        (out / EFFECT_FILE).write_text(effect_file_source())
     r = cal.result
     comps = sc["components"]
     plant = comps["plant"]
     base_params = {k: v for k, v in (plant.get("params") or {}).items()
                    if k.startswith(("p0_", "axis0_"))}
     inputs = dict(plant.get("inputs") or {})
-    inputs.update({port: {"from": src, "delay": 1} for port, src in FORCE_WIRES.items()})
+    forced = bool(cal.effects)  # no force effect: the plain plant, no effect component
+    if forced:
+        inputs.update({port: {"from": src, "delay": 1} for port, src in FORCE_WIRES.items()})
     std, values = cal.std, cal.values
     plant_lines = [f"{k}: {_num(v)}" for k, v in base_params.items()]
     fmu = K.fmu_values({k.name: values[k.name] for k in K.PLANT_KNOBS})
@@ -100,19 +105,7 @@ def write_twin(cal, out: Path, scenario_path=None) -> Path:
         "# Values: calibrated on the FMU's open-loop replay of the logs, +- one standard error;",
         "# 'not determined': the logs do not fix it (twin.json: not_determined, held_fixed).",
     ] + [f"# camera {n}" for n in cam_note]
-    head = {k: v for k, v in sc.items() if k not in ("components", "plugins", "name", "description", "sweep")}
-    lines = header + [
-        f"name: twin_{sc.get('name', 'lab')}",
-        f"description: {_flow(str(sc.get('description', 'the lab loop')) + ' (on its calibrated twin)')}",
-        f"plugins: {yaml.safe_dump([EFFECT_FILE, *(sc.get('plugins') or [])], default_flow_style=True).strip()}",
-        yaml.safe_dump(head, sort_keys=False).rstrip(),
-        "components:",
-        "  plant:",
-        "    plugin: plant.fmu_forced",
-        "    params:",
-        *[f"      {x}" for x in plant_lines],
-        "    inputs:",
-        *_indent(yaml.safe_dump(inputs, sort_keys=False), 6),
+    effect_lines = [
         "  effect:",
         "    plugin: twin.effect",
         "    params:",
@@ -123,7 +116,22 @@ def write_twin(cal, out: Path, scenario_path=None) -> Path:
         f"      plant_params: {_flow({k: fmu[k] for k in ('prop_coeff', 'drag_axial', 'volume')})}",
         "      coupling: linear",
         "    inputs: {position: plant.position, velocity: plant.velocity, omega: "
-        + _omega_source(comps) + "}",
+        + _omega_source(comps) + "}"
+    ] if forced else []
+    head = {k: v for k, v in sc.items() if k not in ("components", "plugins", "name", "description", "sweep")}
+    lines = header + [
+        f"name: twin_{sc.get('name', 'lab')}",
+        f"description: {_flow(str(sc.get('description', 'the lab loop')) + ' (on its calibrated twin)')}",
+        f"plugins: {_flow([*([EFFECT_FILE] if paper else []), *(sc.get('plugins') or [])])}",
+        yaml.safe_dump(head, sort_keys=False).rstrip(),
+        "components:",
+        "  plant:",
+        f"    plugin: {'plant.fmu_forced' if forced else 'plant.fmu'}",
+        "    params:",
+        *[f"      {x}" for x in plant_lines],
+        "    inputs:",
+        *_indent(yaml.safe_dump(inputs, sort_keys=False), 6),
+        *effect_lines,
         *_indent(yaml.safe_dump(others, sort_keys=False), 2),
     ]
     path = out / "twin.yaml"
@@ -158,7 +166,9 @@ def _num3(v) -> str:
 
 
 def _pm(std: float, unit: str, name: str, r: dict) -> str:
-    """'+- std unit' or 'not determined'."""
+    """'+- std unit', 'not determined' or 'held' (a knob the calibration did not fit)."""
+    if name in r.get("polish", {}).get("held", ()):
+        return "held at its start value (not fitted)"
     if name in r.get("not_determined", {}) or std is None or not math.isfinite(std):
         return f"not determined (+- {std:.2g} {unit})" if std is not None and math.isfinite(std) else \
             "not determined"
