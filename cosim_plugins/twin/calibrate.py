@@ -12,7 +12,7 @@ Route (fast fit first, then the FMU; both reported):
    external force input. A latency the host fitted (``sensor_latency``) starts the
    camera's.
 3. **FMU polish.** With the host model's structure first (the FMU's coil lag and heading
-   dynamics off: instant actuation, the axis on the spin axis), every knob (:mod:`.knobs`:
+   dynamics off: instant actuation, the axis on the spin axis; no gradient force), every knob (:mod:`.knobs`:
    propulsion, drags, anisotropy, net weight, heading response, gradient force, camera
    latency, effect parameters) is refined by least squares on the FMU's own open-loop replay of training windows
    (:mod:`.replay`; errors every 5 rows up to 1.0 s), in chunks spread over ``jobs``
@@ -46,6 +46,7 @@ from cosim_plugins.twin.host_forces import paper_forces_effect
 from cosim_plugins.twin.replay import FmuRunner, make_chunks, window_errors
 
 SWITCHES = ("actuation_lag_on", "heading_dynamics_on")  # FMU dynamics the logs may show or not (chosen)
+SWITCHED = {"rot_drag_perp": "heading_dynamics_on"}  # knobs that act only with their FMU switch on
 SWITCH_GAIN = 0.02  # a switch turned on must lower the training rms error by this share
 TRAIN_CHUNKS = 30  # training chunks of the FMU polish (a random sample of 1 s spans)
 POLISH_EVERY = 5  # the polish scores each window every this many rows up to the reference horizon
@@ -352,7 +353,8 @@ def _switches(train: Replay, values: dict, effects, reuse, say) -> tuple[dict, d
 def _polish(train: Replay, knobs, start: dict, effects, reuse, s: Settings, say, switches: dict,
             max_nfev: int | None = None):
     """(values, std, info): every knob refined on the FMU's replay of the training chunks (see the module doc)."""
-    held = {k.name: start[k.name] for k in knobs if s.free is not None and k.name not in s.free}
+    held = {k.name: start[k.name] for k in knobs if (s.free is not None and k.name not in s.free)
+            or (k.name in SWITCHED and not switches[SWITCHED[k.name]])}
     all_knobs, knobs = knobs, [k for k in knobs if k.name not in held]
     names = [k.name for k in knobs]
     x0 = np.array([k.to_x(start[k.name]) for k in knobs])

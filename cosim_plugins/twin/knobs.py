@@ -86,7 +86,7 @@ def plant_from_host(host: dict) -> dict:
 
     prop_coeff = k / 2 pi (a thrust k u [uN] at u = omega / 2 pi), drag_axial = Cd1, net weight = -Fvs,
     anisotropy_ratio = 1 + Cd0 / Cd1 (broadside, alpha = 90 deg: Cd0 + Cd1 = ratio Cd1); the heading
-    response and the gradient force keep the FMU's defaults (the host model has neither).
+    response keeps the FMU's default and the gradient force starts at 0 (the host model has neither).
     """
     d = fmu_defaults()
     cd1 = max(float(host["Cd1"]), 1e-6)
@@ -97,7 +97,7 @@ def plant_from_host(host: dict) -> dict:
         "anisotropy_ratio": float(np.clip(1.0 + max(float(host.get("Cd0", 0.0)), 0.0) / cd1, 0.3, 10.0)),
         "net_weight": float(np.clip(-float(host["Fvs"]) * N_PER_UN, -1e-5, 1e-5)),
         "rot_drag_perp": d["rot_drag_perp"],
-        "gradient_force_scale": d["gradient_force_scale"],
+        "gradient_force_scale": 0.0,
     }
 
 
