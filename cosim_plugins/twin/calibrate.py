@@ -76,7 +76,8 @@ class Settings:
 @dataclass
 class Calibration:
     """What a calibration found: ``result`` is twin.json; ``values`` and ``std`` the knobs; ``effects`` the force
-    effects applied (their parameters in ``values``); ``host`` the host parameters they reuse; ``sigma_mm``
+    effects applied (their parameters in ``values``; they reuse the twin's own drag, thrust and weight); ``host``
+    the host fit's k, Cd0, ... (None without one); ``sigma_mm``
     the camera noise (x, y, z) [mm]."""
 
     result: dict
@@ -175,18 +176,18 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
 
     uncal = _held_out(test, [(K.fmu_values(K.plant_defaults()), None)], [0.0], "uncalibrated FMU")[0]
     host_structure = {k: False for k in SWITCHES}  # instant actuation, the axis on the spin axis
-    mapped_h = _held_out(test, [_setting(start, applied_effects, host["reuse"], host_structure)],
+    mapped_h = _held_out(test, [_setting(start, applied_effects, host_structure)],
                          [start["latency_s"]], "mapped FMU")[0]
     say(f"uncalibrated FMU: {_fmt(uncal)}; host fit mapped onto the FMU: {_fmt(mapped_h)}")
 
     switches = dict(host_structure)
-    values, std, info = _polish(train, knobs, start, applied_effects, host["reuse"], s, say, switches)
-    chosen, switch_rms = _switches(train, values, applied_effects, host["reuse"], say)
+    values, std, info = _polish(train, knobs, start, applied_effects, s, say, switches)
+    chosen, switch_rms = _switches(train, values, applied_effects, say)
     if chosen != switches:
         switches = chosen
-        values, std, info = _polish(train, knobs, values, applied_effects, host["reuse"], s, say, switches,
+        values, std, info = _polish(train, knobs, values, applied_effects, s, say, switches,
                                     max_nfev=max(2, s.max_nfev // 2))
-    calibrated = _held_out(test, [_setting(values, applied_effects, host["reuse"], switches)],
+    calibrated = _held_out(test, [_setting(values, applied_effects, switches)],
                            [values["latency_s"]], "calibrated twin")[0]
     say(f"calibrated twin: {_fmt(calibrated)}")
 
@@ -305,7 +306,7 @@ def _train_replay(win, ks, s: Settings) -> Replay:
     return Replay(win.train, None, win.lead, ks, s.jobs, chunks=chunks)
 
 
-def _setting(values: dict, effects, reuse, switches: dict | None = None) -> tuple:
+def _setting(values: dict, effects, switches: dict | None = None) -> tuple:
     """(FMU parameters, AppliedEffects) of knob values (and the FMU's effect ``switches``)."""
     from cosim_plugins.twin.applied import AppliedEffects
     from cosim_plugins.twin.units import host_params_from_fmu
@@ -313,8 +314,9 @@ def _setting(values: dict, effects, reuse, switches: dict | None = None) -> tupl
     fmu = {**K.fmu_values({k: v for k, v in values.items() if k in {p.name for p in K.PLANT_KNOBS}}),
            **(switches or {})}
     eff = {q: float(values[q]) for e in effects for q in e.param_names()}
-    host = reuse or host_params_from_fmu(fmu)
-    return fmu, AppliedEffects(effects, eff, host)
+    # the effects reuse the twin's own drag, thrust and weight (a flow's w is then the flow's speed), never the
+    # host fit's: the FMU's law may need other values than the host model's to give the same motion
+    return fmu, AppliedEffects(effects, eff, host_params_from_fmu(fmu))
 
 
 def _held_out(replay: Replay, settings: list, latencies: list, what: str) -> list:
@@ -329,14 +331,14 @@ def _held_out(replay: Replay, settings: list, latencies: list, what: str) -> lis
     return out
 
 
-def _switches(train: Replay, values: dict, effects, reuse, say) -> tuple[dict, dict]:
+def _switches(train: Replay, values: dict, effects, say) -> tuple[dict, dict]:
     """(the FMU dynamics switches the training windows favour at ``values``, the rms error [mm] of each
     combination): every combination of :data:`SWITCHES` replayed once; the host model's structure (both off)
     is kept unless another lowers the rms error by more than :data:`SWITCH_GAIN`."""
     import itertools
 
     combos = [dict(zip(SWITCHES, bits)) for bits in itertools.product((False, True), repeat=len(SWITCHES))]
-    trajs = train.trajectories([_setting(values, effects, reuse, c) for c in combos], "FMU switches")
+    trajs = train.trajectories([_setting(values, effects, c) for c in combos], "FMU switches")
     rms = []
     for tr in trajs:
         valid, err, _ = train.errors(tr, values["latency_s"],
@@ -350,7 +352,7 @@ def _switches(train: Replay, values: dict, effects, reuse, say) -> tuple[dict, d
     return combos[best], table
 
 
-def _polish(train: Replay, knobs, start: dict, effects, reuse, s: Settings, say, switches: dict,
+def _polish(train: Replay, knobs, start: dict, effects, s: Settings, say, switches: dict,
             max_nfev: int | None = None):
     """(values, std, info): every knob refined on the FMU's replay of the training chunks (see the module doc)."""
     held = {k.name: start[k.name] for k in knobs if (s.free is not None and k.name not in s.free)
@@ -373,7 +375,7 @@ def _polish(train: Replay, knobs, start: dict, effects, reuse, s: Settings, say,
         todo = [j for j, key in enumerate(keys) if key not in cache]
         uniq = {keys[j]: j for j in todo}
         if uniq:
-            settings = [_setting(values_of(xs[j]), effects, reuse, switches) for j in uniq.values()]
+            settings = [_setting(values_of(xs[j]), effects, switches) for j in uniq.values()]
             count["runs"] += len(settings)
             for key, trajs in zip(uniq, train.trajectories(settings, "FMU polish")):
                 cache[key] = trajs

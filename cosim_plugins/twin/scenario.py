@@ -112,8 +112,8 @@ def write_twin(cal, out: Path, scenario_path=None) -> Path:
         f"      effects: {yaml.safe_dump(eff_names, default_flow_style=True).strip()}",
         "      effect_params:",
         *[f"        {x}" for x in eff_lines],
-        f"      host: {_flow(cal.host)}" if cal.host else
-        f"      plant_params: {_flow({k: fmu[k] for k in ('prop_coeff', 'drag_axial', 'volume')})}",
+        "      # the effects reuse the twin's own drag, thrust and net weight (its plant's values)",
+        f"      plant_params: {_flow({k: float(_num(fmu[k])) for k in ('prop_coeff', 'drag_axial', 'volume')})}",
         "      coupling: linear",
         "    inputs: {position: plant.position, velocity: plant.velocity, omega: "
         + _omega_source(comps) + "}"
