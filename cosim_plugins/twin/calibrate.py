@@ -409,7 +409,9 @@ def _polish(train: Replay, knobs, start: dict, effects, s: Settings, say, switch
         return J
 
     r_start = fun(x0)
-    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev or s.max_nfev,
+    # x is already scaled (log of a positive knob, value / scale otherwise): no further scaling
+    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale=1.0,
+                        max_nfev=max_nfev or s.max_nfev,
                         ftol=1e-4, xtol=1e-4)
     x = sol.x
     r, ids = batch([x])[0]
