@@ -182,6 +182,17 @@ FLOW_KF_CODE = (*DIAGNOSE_CODE, "cosim_plugins.estimators", "cosim_plugins.contr
 #: The sweep table's columns the effects page leaves out.
 SWEEP_DROP = ("max [mm]", "prediction x / y / z / RMSE [mm]", "solve median / p99 [ms]", "status")
 
+#: What the twin's calibration runs besides the diagnosis: the twin, the lab's loop it writes and runs.
+TWIN_CODE = (*DIAGNOSE_CODE, "cosim_plugins.twin", "cosim_plugins.coil_driver", "cosim_plugins.camera",
+             "cosim_plugins.controllers", "cosim_plugins.estimators", "cosim_plugins.paths", "cosim/record/summary.py",
+             "cosim_plugins/scenarios/racetrack.yaml")
+
+
+def calibration_table(text: str) -> str:
+    """``cosim twin calibrate``'s printout from its error table to its list of held parameters."""
+    return lines_between("held-out error [mm]", "held at the FMU's values")(text)
+
+
 BLOCKS: dict[str, Block] = {
     "first-steps": Block(("cosim run racetrack --set components.camera.params.interval_s=0.1 "
                           "--out runs/frames_100ms",)),
@@ -198,6 +209,10 @@ BLOCKS: dict[str, Block] = {
         ("cosim diagnose runs/diag_flow/runs/*/log.csv --add background_flow --out runs/diag_flow/added",),
         keep=lines_between("held-out error [mm]", "noise floor"), slow=True, depends=DIAGNOSE_CODE,
         after="diagnose-walkthrough"),
+    "twin-calibrate": Block(
+        ("cosim twin calibrate runs/diag_flow/runs/*/log.csv --effects background_flow --out runs/diag_flow/twin",
+         "cosim run runs/diag_flow/twin/twin.yaml --out runs/diag_flow/twin_run"),
+        keep=(calibration_table, lambda text: text), slow=True, depends=TWIN_CODE, after="diagnose-walkthrough"),
     "until-stopped": Block(("timeout -s INT 20 cosim run racetrack --until-stopped --out runs/rig",),
                            keep=without_progress, exit_codes=(124,), stderr=True, slow=True,
                            depends=("cosim/runtime", "cosim/cli", "cosim_plugins/scenarios/racetrack.yaml")),

@@ -1,4 +1,4 @@
-"""The twin plugin: the plant FMU with effects added from outside.
+"""The twin plugin: the plant FMU with effects added from outside, calibrated to a lab's logs.
 
 Registers two components: ``plant.fmu_forced`` (the plant FMU with its external
 force input as ports, :class:`cosim_plugins.plant.fmu_component.FmuForcedPlant`) and
@@ -6,7 +6,9 @@ force input as ports, :class:`cosim_plugins.plant.fmu_component.FmuForcedPlant`)
 by name, a user's effect file loaded as a plugin, or every force effect of a saved
 physical model) at the plant's own state and the command and sends the force to
 the plant. The effects work in the identification units (mm, mm/s, Hz, uN); the FMU
-in SI: :mod:`.units` converts at that edge. See ``docs/twin.md``.
+in SI: :mod:`.units` converts at that edge. And the command ``cosim twin calibrate``
+(:mod:`.cli`, :mod:`.calibrate`): the FMU's parameters and the effects' fitted to a
+lab's logs, written as a scenario of the lab's loop on its twin. See ``docs/twin.md``.
 """
 
 from cosim import hookimpl
@@ -19,3 +21,10 @@ def cosim_register_components(register):
 
     register("plant.fmu_forced", FmuForcedPlant)
     register("twin.effect", EffectInjector)
+
+
+@hookimpl
+def cosim_register_commands(register):
+    from cosim_plugins.twin import cli
+
+    register(cli.add_commands)
