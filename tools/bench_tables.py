@@ -144,6 +144,16 @@ def _archive(d: dict) -> str:
         ", ".join(sorted({e for r in o["runs"] for e in r["effects"]}))
 
 
+def _twin(d: dict) -> str:
+    o = d["output"]
+    lab, blind = o["lab"], o["blind"]["with_effect"]
+    return (f"lab logs ({lab['logs']} x {lab['log_s']} s): {lab['calibration_s']:.0f} s, twin {lab['twin_mm']:.3f} mm "
+            f"against uncalibrated {lab['uncalibrated_mm']:.3f} mm ({lab['twin_over_uncalibrated']:.2f}x) and host "
+            f"{lab['host_mm']:.3f} mm; blind bench ({o['blind']['case']}): twin {blind['twin_mm']:.3f} mm, "
+            f"{blind['twin_over_uncalibrated']:.2f}x uncalibrated, {blind['twin_over_host']:.2f}x the host model, "
+            f"{o['blind']['without_effect']['twin_mm']:.3f} mm without the effect")
+
+
 def _blind(d: dict) -> str:
     o = d["output"]
     lib, none, out = o["library"], o["no_effect"], o["outside"]
@@ -238,6 +248,10 @@ ROWS = (
     Row("archive.py", "`cosim diagnose` on 5, 20 and 120 logs of 60 s from the blind bench's simulator "
         "(a background flow hidden): wall time, peak memory, the named effects",
         "2 hours <= 3 min and <= 3 GB, the verdict of 20 logs", ("archive",), _archive),
+    Row("twin.py", "`cosim twin calibrate`: five 60 s logs (a 3 mm/s flow hidden in the plant FMU) and a blind "
+        "bench case; held-out open-loop error at 1.0 s of the calibrated twin, the uncalibrated FMU and diagnose's "
+        "host model ([The twin](twin.md))", "calibration <= 3 min; twin <= 0.5x uncalibrated, <= 1.5x host",
+        ("twin",), _twin),
     Row("blind.py", "`cosim diagnose` on logs of an independent simulator, 60 random cases "
         "(see [How diagnose is validated](diagnose/validation.md))",
         "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75", ("blind_s3", "blind_s2"), _blind),

@@ -147,11 +147,9 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     steps = {h: max(1, int(round(v / dt))) for h, v in s.horizons.items()}
     fit_len = max(4, int(round(FIT_WINDOW_S / dt)))
     frac = float(np.mean(tall.measured))  # sparse camera frames: ask for a share of what the logs have
-    fit_starts = _sample(ttr.window_starts(fit_len, 0.7 * frac), s.fit_windows, s.seed)
-    test_starts = _evenly(tte.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE],
-                          MAX_EVAL_WINDOWS)
-    all_starts = _evenly(tall.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE],
-                         MAX_LOCALISE_WINDOWS)
+    fit_starts = sample_starts(ttr.window_starts(fit_len, 0.7 * frac), s.fit_windows, s.seed)
+    test_starts = evenly(open_loop_starts(tte, lead, frac), MAX_EVAL_WINDOWS)
+    all_starts = evenly(open_loop_starts(tall, lead, frac), MAX_LOCALISE_WINDOWS)
     _check_sizes(fit_starts, fit_len, test_starts, tte, lead, steps[s.reference], dt)
     sigma = noise_sigma_mm(tall)
     if not np.all(np.isfinite(sigma)):
@@ -162,17 +160,16 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
 
     # a fit's starts are told apart by their open-loop error at the reference horizon on training windows:
     # the fit's own windows are shorter, and there a lag and a slower velocity response can cost about the same
-    score_starts = _sample(ttr.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE],
-                           SCORE_WINDOWS, s.seed)
+    score_starts = sample_starts(open_loop_starts(ttr, lead, frac), SCORE_WINDOWS, s.seed)
 
     def score(jm):
         r = jm.evaluate(ttr, score_starts, lead, {s.reference: steps[s.reference]})[s.reference]
         return float(np.mean(np.linalg.norm(r["err"][r["valid"]], axis=1))) if r["valid"].any() else np.inf
 
     # every fit then goes on on the open-loop errors up to the reference horizon: what the diagnosis measures
-    train_open = ttr.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE]
-    polish = OpenLoop.upto(_sample(train_open, POLISH_WINDOWS, s.seed + 1), lead, steps[s.reference])
-    open_train = OpenLoop.upto(_sample(train_open, DISCOVER_WINDOWS, s.seed + 2), lead, steps[s.reference])
+    train_open = open_loop_starts(ttr, lead, frac)
+    polish = OpenLoop.upto(sample_starts(train_open, POLISH_WINDOWS, s.seed + 1), lead, steps[s.reference])
+    open_train = OpenLoop.upto(sample_starts(train_open, DISCOVER_WINDOWS, s.seed + 2), lead, steps[s.reference])
     block_rows = max(1, int(round(VERDICT_BLOCK_S / dt)))
     fitter = Fitter(s, added, ttr, fit_starts, fit_len, score, polish, tte, test_starts, lead, steps, block_rows)
 
@@ -383,7 +380,14 @@ def _masked(lg, hide):
     return replace(lg, p_mm=p)
 
 
-def _sample(starts, n, seed):
+def open_loop_starts(tl, lead: int, frac: float) -> np.ndarray:
+    """Starts of the open-loop windows a diagnosis evaluates on a timeline ``tl``: a lead-in of ``lead`` rows
+    with at least 60 % of the logs' share ``frac`` of camera frames, every :data:`EVAL_STRIDE`-th row."""
+    return tl.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::EVAL_STRIDE]
+
+
+def sample_starts(starts: np.ndarray, n: int, seed: int) -> np.ndarray:
+    """At most ``n`` of ``starts``, drawn at random (``seed``) and sorted."""
     if len(starts) <= n:
         return starts
     return np.sort(np.random.default_rng(seed).choice(starts, n, replace=False))
@@ -396,7 +400,7 @@ def _read(paths: list, what: str) -> list:
     return [read_log(p) for p in bar(paths, what)]
 
 
-def _evenly(starts: np.ndarray, n: int) -> np.ndarray:
+def evenly(starts: np.ndarray, n: int) -> np.ndarray:
     """At most ``n`` of ``starts``, evenly spaced along them (every log keeps its share)."""
     if len(starts) <= n:
         return starts

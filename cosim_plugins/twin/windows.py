@@ -56,10 +56,8 @@ def diagnose_windows(logs, validate=None, train_windows: int = pipeline.POLISH_W
     steps = {h: max(1, int(round(v / dt))) for h, v in pipeline.HORIZONS_S.items()}
     frac = float(np.mean(tall.measured))
     # diagnose's held-out windows (pipeline.run: test_starts) and its polish sample of training windows
-    test_starts = pipeline._evenly(tte.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)
-                                   [::pipeline.EVAL_STRIDE], pipeline.MAX_EVAL_WINDOWS)
-    train_open = ttr.window_starts(lead, 0.6 * frac, rows=lead + 1, measured_start=False)[::pipeline.EVAL_STRIDE]
-    train_starts = pipeline._sample(train_open, train_windows, seed + 1)
+    test_starts = pipeline.evenly(pipeline.open_loop_starts(tte, lead, frac), pipeline.MAX_EVAL_WINDOWS)
+    train_starts = pipeline.sample_starts(pipeline.open_loop_starts(ttr, lead, frac), train_windows, seed + 1)
     ref = pipeline.REFERENCE
     k_ref = steps[ref]
     n_ref = int(np.sum((tte.run[test_starts] >= lead + k_ref)
