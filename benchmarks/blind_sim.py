@@ -1077,7 +1077,7 @@ truth also a start that holds while the model's own parameters adapt to it{lookb
 import numpy as np
 
 from cosim import hookimpl
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 {constants}
 
 {laws}
@@ -1177,7 +1177,7 @@ def _true_form(effect, law, truth, index, seed) -> str | None:
     def value(x):
         return float(x(truth) if callable(x) else truth[x] if isinstance(x, str) else x)
 
-    params = "".join(f"\n        Param({name!r}, {value(init)!r}, {value(lo)!r}, {value(hi)!r}, {unt!r}),"
+    params = "".join(f"\n        EffectParam({name!r}, {value(init)!r}, {value(lo)!r}, {value(hi)!r}, {unt!r}),"
                      for name, init, lo, hi, unt in spec)
     laws = "\n\n\n".join(inspect.getsource(f).rstrip() for f in (unit, *fns))
     consts = {"TANK_HALF_MM": TANK_HALF_MM, "GRADIENT_PHASES": GRADIENT_PHASES, "LAW": law}

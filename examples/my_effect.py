@@ -21,7 +21,7 @@ u = omega [Hz] as (n, 3) arrays and ``params`` the parameters by short name
 import numpy as np
 
 from cosim import hookimpl
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 
 TANK_HALF_MM = 75.0  # the tank is a 150 mm cube centred at the origin
 
@@ -34,7 +34,7 @@ def wall_drag_exp(p, v, u, params):
 
 MY_EFFECT = Effect(
     name="wall_drag_exp",
-    params=(Param("c", 0.0, 0.0, 1.0, "uN s/mm"), Param("ell", 5.0, 0.5, 40.0, "mm")),
+    params=(EffectParam("c", 0.0, 0.0, 1.0, "uN s/mm"), EffectParam("ell", 5.0, 0.5, 40.0, "mm")),
     force=wall_drag_exp,
     doc="Wall drag decaying exponentially: the linear drag near a wall rises by c exp(-d / ell) [uN s/mm], "
         "d the distance from the centre to the nearest wall [mm], ell [mm] the decay length.",

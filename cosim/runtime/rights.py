@@ -18,7 +18,7 @@ certificate name) may
 
 A placed component's identity has that one component: a holder of the camera's
 certificate can publish the camera's outputs and replies and nothing else, even
-when the coil driver runs on the same host; a put it makes on another key is
+when the actuator's driver runs on the same host; a put it makes on another key is
 dropped by every process it reaches (and logged there, see
 :mod:`cosim.runtime.security_log`). A host's own certificate carries no component
 of its own, except the scheduler's host, whose certificate the components not

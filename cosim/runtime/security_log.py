@@ -4,7 +4,7 @@ Every process of a run spread over processes (the scheduler and each node)
 appends its events to ``security.jsonl`` in the run's output folder (a node on
 another machine: in the run folder there), one JSON object a line::
 
-    {"time": "2026-11-25T20:41:07.114Z", "process": "node coil_driver", "key": "cosim/1f2e/controller/outputs",
+    {"time": "2026-11-25T20:41:07.114Z", "process": "node actuator", "key": "cosim/1f2e/controller/outputs",
      "reason": "refused by access control: camera@lab may not Put (ingress) here", "from": "camera@lab"}
 
 Two kinds of events:

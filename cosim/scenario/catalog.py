@@ -3,7 +3,7 @@
 A domain ships its scenario files as package data and registers their folder through the
 hook ``cosim_register_scenarios`` with :func:`register_folder`: every ``*.yaml`` file under
 it is a scenario named by its path in the folder without the suffix (``racetrack``,
-``paper/training``). ``cosim scenarios`` lists them with their ``description``; every
+``lab/training``). ``cosim scenarios`` lists them with their ``description``; every
 command that takes a scenario file takes such a name too (:func:`resolve_scenario`).
 """
 

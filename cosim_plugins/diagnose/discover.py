@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim_plugins.diagnose.verdict import BLOCK_S, MIN_T, paired_t
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 
 AXES = "xyz"
 WALL_MM = 75.0  # the tank's half size: walls at +-75 mm
@@ -153,7 +153,8 @@ def term_force(terms, coefs, p, v, u) -> np.ndarray:
 def library_effect(terms, scales, name: str = "discovered", coefs=None) -> Effect:
     """An :class:`Effect` whose parameters are the coefficients of ``terms`` (typical sizes ``scales``)."""
     coefs = np.zeros(len(terms)) if coefs is None else np.asarray(coefs, dtype=float)
-    params = tuple(Param(t.name, float(c), unit=_coef_unit(t), scale=float(s)) for t, c, s in zip(terms, coefs, scales))
+    params = tuple(EffectParam(t.name, float(c), unit=_coef_unit(t), scale=float(s))
+                   for t, c, s in zip(terms, coefs, scales))
 
     def force(p, v, u, prm):
         return term_force(terms, [prm[t.name] for t in terms], p, v, u)
@@ -403,7 +404,7 @@ def effect_source(terms, coefs: dict, scales, words) -> str:
         "import numpy as np",
         "",
         "from cosim import hookimpl",
-        "from cosim_plugins.identify.effect import Effect, Param",
+        "from cosim_plugins.identify.effect import Effect, EffectParam",
         "",
         f"TANK_HALF_MM = {WALL_MM}",
         "",
@@ -427,7 +428,7 @@ def effect_source(terms, coefs: dict, scales, words) -> str:
         lines.append(f'    f[:, {t.axis}] += params["{t.name}"] * {t.expr}  # along {AXES[t.axis]}: {t.words}')
     lines += ["    return f", "", "", "DISCOVERED = Effect(", '    name="discovered",', "    params=("]
     for t, s in zip(terms, scales):
-        lines.append(f'        Param("{t.name}", {coefs[t.name]!r}, unit="{_coef_unit(t)}", scale={float(s)!r}),')
+        lines.append(f'        EffectParam("{t.name}", {coefs[t.name]!r}, unit="{_coef_unit(t)}", scale={float(s)!r}),')
     lines += ["    ),", "    force=discovered_force,",
               f"    doc={' '.join(words)!r},", ")", "", "", "@hookimpl", "def cosim_register_effects(register):",
               "    register(DISCOVERED)", ""]

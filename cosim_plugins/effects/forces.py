@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 
 #: Half the tank's edge [mm]: walls at +-75 mm on every axis.
 TANK_HALF_MM = 75.0
@@ -65,7 +65,7 @@ def _background_flow(p, v, u, prm):
 
 BACKGROUND_FLOW = Effect(
     name="background_flow",
-    params=(Param("w_x", 0.0, -50.0, 50.0, "mm/s", 1.0), Param("w_y", 0.0, -50.0, 50.0, "mm/s", 1.0)),
+    params=(EffectParam("w_x", 0.0, -50.0, 50.0, "mm/s", 1.0), EffectParam("w_y", 0.0, -50.0, 50.0, "mm/s", 1.0)),
     force=_background_flow,
     doc="A uniform drift of the water (residual circulation, a slow pump): the drag acts on the velocity "
         "relative to the water, -Cd (v - w), so the extra force is +Cd w with the model's drag coefficient "
@@ -85,7 +85,7 @@ def _wall_drag(p, v, u, prm):
 
 WALL_DRAG = Effect(
     name="wall_drag",
-    params=(Param("c", 0.0, 0.0, 5.0, "uN s/mm", 0.05), Param("ell", 5.0, 0.5, 40.0, "mm", 5.0)),
+    params=(EffectParam("c", 0.0, 0.0, 5.0, "uN s/mm", 0.05), EffectParam("ell", 5.0, 0.5, 40.0, "mm", 5.0)),
     force=_wall_drag,
     doc="Extra drag near a wall (lubrication and image-flow effects; Faxen and Brenner give a drag rise "
         "~ a/h at a distance h from a plane wall): -c ell / (d + ell) v with d the distance from the "
@@ -116,7 +116,7 @@ def _step_out_starts(u, dt_s):
 
 STEP_OUT = Effect(
     name="step_out",
-    params=(Param("f_so", 100.0, 1.0, 100.0, "Hz", 5.0),),
+    params=(EffectParam("f_so", 100.0, 1.0, 100.0, "Hz", 5.0),),
     force=_step_out,
     doc="Step-out: above f_so = m B / (2 pi c_rot) the magnet cannot follow the field and slips; its mean "
         "spin is f - sqrt(f^2 - f_so^2) instead of f, so the propulsion k omega loses "
@@ -149,7 +149,7 @@ def _gradient_force(p, v, u, prm):
 
 GRADIENT_FORCE = Effect(
     name="gradient_force",
-    params=tuple(Param(n, 0.0, -1.0, 1.0, "uN/mm", 3e-3) for n in (*_PAIR, *_CROSS)),
+    params=tuple(EffectParam(n, 0.0, -1.0, 1.0, "uN/mm", 3e-3) for n in (*_PAIR, *_CROSS)),
     force=_gradient_force,
     doc="The magnetic gradient force (m . grad) B of three orthogonal coil pairs: a magnet locked to the "
         "rotating field feels, averaged over a turn, m grad |B|, linear in position near the centre. "
@@ -171,7 +171,7 @@ def _anisotropic_drag(p, v, u, prm):
 
 ANISOTROPIC_DRAG = Effect(
     name="anisotropic_drag",
-    params=(Param("c", 0.0, -0.05, 2.0, "uN s/mm", 0.02),),
+    params=(EffectParam("c", 0.0, -0.05, 2.0, "uN s/mm", 0.02),),
     force=_anisotropic_drag,
     doc="Anisotropic drag of an elongated body: moving broadside costs more than moving along its axis "
         "(slender-body ratio up to 2). With the long axis along the command u, the extra force is "
@@ -190,7 +190,7 @@ def _quadratic_drag(p, v, u, prm):
 
 QUADRATIC_DRAG = Effect(
     name="quadratic_drag",
-    params=(Param("c", 0.0, 0.0, math.inf, "uN s^2/mm^2", 2e-3),),
+    params=(EffectParam("c", 0.0, 0.0, math.inf, "uN s^2/mm^2", 2e-3),),
     force=_quadratic_drag,
     doc="Form drag at Reynolds numbers of 25-300: -c |v| v with c = rho Cd A / 2 [uN s^2/mm^2] "
         "(water, Cd ~ 1, A ~ 5-15 mm^2 gives 2.5e-3-7.5e-3), on top of the model's linear drag.",

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 
 
 def first_order_lag(u: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
@@ -39,7 +39,7 @@ def _actuation_lag(u, dt_s, prm):
 ACTUATION_LAG = Effect(
     name="actuation_lag",
     kind="input",
-    params=(Param("tau", 0.0, 0.0, 1.0, "s", 0.05),),
+    params=(EffectParam("tau", 0.0, 0.0, 1.0, "s", 0.05),),
     transform=_actuation_lag,
     doc="Lag between the command and the field: coil inductance (L/R, or the envelope of a series RLC "
         "drive) and amplifier bandwidth make the rotating field follow a new command with a first-order "
@@ -59,7 +59,7 @@ def _heading_lag(u, dt_s, prm):
 HEADING_LAG = Effect(
     name="heading_lag",
     kind="input",
-    params=(Param("tau", 0.0, 0.0, 1.0, "s", 0.05),),
+    params=(EffectParam("tau", 0.0, 0.0, 1.0, "s", 0.05),),
     transform=_heading_lag,
     doc="The swimmer's body turns towards a new rotation axis through its rotational drag (time constant "
         "c_perp / (m B)), so its thrust points along a lagged axis: the command's direction filtered by a "
@@ -84,7 +84,7 @@ def _latency_lookback(prm) -> int:
 SENSOR_LATENCY = Effect(
     name="sensor_latency",
     kind="sensor",
-    params=(Param("delay", 0.0, 0.0, 10.0, "steps", 0.5),),
+    params=(EffectParam("delay", 0.0, 0.0, 10.0, "steps", 0.5),),
     transform=_sensor_latency,
     doc="Camera latency (exposure, transfer, image processing): the position logged at t_i is where the "
         "swimmer was at t_i - delay dt; delay [control periods] is fitted as a fraction or a number of "

@@ -26,7 +26,7 @@ An effect is one of three kinds:
     before each window, so the transform reads a trajectory, not an
     extrapolation, and the first rows it returns are dropped.
 
-Parameters are :class:`Param` (initial value, bounds, unit, typical scale). ``starts``
+Parameters are :class:`EffectParam` (initial value, bounds, unit, typical scale). ``starts``
 lists further initial values ``{param: value}`` that a fit tries first (it
 keeps the one with the lowest cost), for effects whose cost is flat at
 their default start (a step-out frequency above every command).
@@ -52,7 +52,7 @@ KINDS = ("force", "input", "sensor")
 
 
 @dataclass(frozen=True)
-class Param:
+class EffectParam:
     """A fitted scalar: name, initial value, bounds, unit (for reports), and a typical magnitude.
 
     ``scale`` is the size of a meaningful change of the parameter (the
@@ -74,6 +74,11 @@ class Param:
         if math.isfinite(self.hi - self.lo):
             return 0.1 * (self.hi - self.lo)
         return max(abs(self.init), 1e-3)
+
+
+#: The class's name before it was renamed (``cosim.Param`` declares a component's parameters): effect files
+#: written earlier, e.g. by ``cosim diagnose``'s discovery, import it under this name.
+Param = EffectParam
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +104,7 @@ class Effect:
     """
 
     name: str
-    params: tuple[Param, ...]
+    params: tuple[EffectParam, ...]
     force: Callable | None = None
     kind: str = "force"
     doc: str = ""
@@ -142,8 +147,8 @@ def check_effect(obj, source: str = "") -> Effect:
     if kind not in KINDS:
         raise UserError(f"{label}: kind {kind!r} is not one of {', '.join(KINDS)}")
     params = getattr(obj, "params", None)
-    if not isinstance(params, (tuple, list)) or not all(isinstance(p, Param) for p in params):
-        raise UserError(f"{label}: params must be a tuple of cosim_plugins.identify.effect.Param")
+    if not isinstance(params, (tuple, list)) or not all(isinstance(p, EffectParam) for p in params):
+        raise UserError(f"{label}: params must be a tuple of cosim_plugins.identify.effect.EffectParam")
     names = [p.name for p in params]
     if len(set(names)) != len(names):
         raise UserError(f"{label}: duplicate parameter names {names}")

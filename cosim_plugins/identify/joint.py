@@ -180,7 +180,7 @@ class JointModel:
         return np.array([q.lo for q in self.param_list]), np.array([q.hi for q in self.param_list])
 
     def scales(self) -> np.ndarray:
-        """(P,) typical magnitude of each parameter (:meth:`Param.typical`): the optimiser's units."""
+        """(P,) typical magnitude of each parameter (:meth:`EffectParam.typical`): the optimiser's units."""
         return np.array([q.typical() for q in self.param_list])
 
     def clip(self, theta: np.ndarray) -> np.ndarray:

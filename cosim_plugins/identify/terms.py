@@ -11,9 +11,9 @@ registers the named ones, which a saved model refers to by name.
 
 from __future__ import annotations
 
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 
-__all__ = ["ForceTerm", "Param", "quadratic_drag"]
+__all__ = ["ForceTerm", "EffectParam", "quadratic_drag"]
 
 
 def ForceTerm(name: str, params, force, doc: str = "") -> Effect:  # noqa: N802 (kept for its old class name)

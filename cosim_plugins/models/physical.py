@@ -53,15 +53,15 @@ from scipy.optimize import least_squares
 from cosim.contract.errors import UserError
 from cosim_plugins.identify.effect import effect_sources, library_data, restore_effects
 from cosim_plugins.identify.model import Model
-from cosim_plugins.identify.terms import ForceTerm, Param
+from cosim_plugins.identify.terms import EffectParam, ForceTerm
 
 BASE_PARAMS = (  # scales: typical magnitudes for a mm-sized swimmer (tau_v ~ 0.03-0.5 s, 1-5 mm/s per Hz)
-    Param("k", 0.1, unit="uN/Hz", scale=0.1),
-    Param("Cd0", 0.0, 0.0, math.inf, "uN s/mm", scale=0.02),
-    Param("Cd1", 0.05, 0.0, math.inf, "uN s/mm", scale=0.05),
-    Param("Cl0", 0.0, unit="uN s/mm", scale=0.02),
-    Param("Fvs", 0.0, unit="uN", scale=0.2),
-    Param("Fmax", 0.0, unit="uN", scale=0.1),
+    EffectParam("k", 0.1, unit="uN/Hz", scale=0.1),
+    EffectParam("Cd0", 0.0, 0.0, math.inf, "uN s/mm", scale=0.02),
+    EffectParam("Cd1", 0.05, 0.0, math.inf, "uN s/mm", scale=0.05),
+    EffectParam("Cl0", 0.0, unit="uN s/mm", scale=0.02),
+    EffectParam("Fvs", 0.0, unit="uN", scale=0.2),
+    EffectParam("Fmax", 0.0, unit="uN", scale=0.1),
 )
 BASE_NAMES = tuple(p.name for p in BASE_PARAMS)
 
@@ -158,7 +158,7 @@ class PhysicalModel(Model):
 
     # ------------------------------------------------------------ parameters
 
-    def all_params(self) -> list[Param]:
+    def all_params(self) -> list[EffectParam]:
         """Base and extra-term parameters, extra ones named ``term.param``."""
         out = list(BASE_PARAMS)
         for term in self.terms:

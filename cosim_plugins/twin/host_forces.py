@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 from cosim_plugins.models.physical import geometry
 
 NAME = "twin_paper_forces"
@@ -30,8 +30,8 @@ def paper_forces(p, v, u, params):
 
 def paper_forces_effect() -> Effect:
     """The effect ``twin_paper_forces`` (Cl0 [uN s/mm], Fmax [uN])."""
-    return Effect(name=NAME, params=(Param("Cl0", 0.0, -5.0, 5.0, "uN s/mm", scale=0.02),
-                                     Param("Fmax", 0.0, -10.0, 10.0, "uN", scale=0.1)),
+    return Effect(name=NAME, params=(EffectParam("Cl0", 0.0, -5.0, 5.0, "uN s/mm", scale=0.02),
+                                     EffectParam("Fmax", 0.0, -10.0, 10.0, "uN", scale=0.1)),
                   force=paper_forces,
                   doc="The paper's lift Cl0 sin(2 alpha) |v| v_perp and centring force Fmax sin(pi |p| / |P_b|) "
                       "(-p_hat), which the plant FMU's law lacks [uN].")

@@ -148,7 +148,7 @@ def test_groups_step_like_separate_models():
 def test_a_term_runs_once_for_the_groups_that_agree_on_what_it_reads():
     """A term reading w_x always and w_y only far from the centre: groups that differ in other parameters share
     its calls, and a call that reads w_y for the first time is redone with the groups split by it."""
-    from cosim_plugins.identify.effect import Effect, Param
+    from cosim_plugins.identify.effect import Effect, EffectParam
 
     def push(p, v, u, prm):
         far = np.abs(p[:, 0]) > 30.0
@@ -158,7 +158,7 @@ def test_a_term_runs_once_for_the_groups_that_agree_on_what_it_reads():
             f[far, 1] = prm["w_y"] * p[far, 1]
         return f
 
-    term = Effect(name="push", params=(Param("w_x", 0.0), Param("w_y", 0.0)), force=push)
+    term = Effect(name="push", params=(EffectParam("w_x", 0.0), EffectParam("w_y", 0.0)), force=push)
     host = lookup("model", "physical")(hold="exact", terms=[term])
     names = [q.name for q in host.all_params()]
     thetas = np.array([[0.1, 0.0, 0.05, 0.004, -0.3, 0.02, 1.0, -0.5]] * 4)

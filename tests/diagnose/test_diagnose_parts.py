@@ -185,11 +185,11 @@ def test_a_diverging_model_shows_a_huge_error_not_nan(synthetic):
     """A force that feeds the velocity (+c v, c m / dt >> 1) blows the rollouts up: each valid window's error
     is DIVERGED_MM, so means and rankings stay numbers."""
     from cosim_plugins.identify.joint import DIVERGED_MM
-    from cosim_plugins.identify.terms import ForceTerm, Param
+    from cosim_plugins.identify.terms import EffectParam, ForceTerm
 
     ds, plant = synthetic
     tl = Timeline.from_dataset(ds)
-    push = ForceTerm("push", (Param("c", 5.0),), lambda p, v, u, prm: prm["c"] * v)
+    push = ForceTerm("push", (EffectParam("c", 5.0),), lambda p, v, u, prm: prm["c"] * v)
     jm = JointModel(plant, [push])
     starts = np.arange(20, tl.n - 80, 37)
     ev = jm.evaluate(tl, starts, 10, {"1.0": 50})["1.0"]

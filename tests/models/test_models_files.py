@@ -82,3 +82,24 @@ def test_a_model_with_an_effect_from_a_users_file_opens_without_that_file(tmp_pa
         assert loaded.params()["swirl.omega"] == 0.3
     finally:
         plugins.reset()
+
+
+def test_an_effect_file_written_before_the_rename_still_loads(tmp_path):
+    """Effect files (and the sources saved models carry) written when the class was called ``Param`` load as they
+    did: the old name is the same class as :class:`EffectParam`."""
+    from pathlib import Path
+
+    from cosim.contract import plugins
+    from cosim_plugins.identify.effect import EffectParam, load_effect_files, resolve
+
+    text = (Path(__file__).parents[1] / "diagnose" / "data" / "swirl_effect.py").read_text()
+    assert "EffectParam" in text
+    src = tmp_path / "old_swirl.py"
+    src.write_text(text.replace("EffectParam", "Param"))
+    plugins.reset()
+    try:
+        load_effect_files([src])
+        (swirl,) = resolve(["swirl"])
+        assert swirl.params and all(type(p) is EffectParam for p in swirl.params)
+    finally:
+        plugins.reset()

@@ -10,7 +10,7 @@ import pytest
 from cosim.contract.errors import UserError
 from cosim_plugins.identify import synthetic as syn
 from cosim_plugins.identify.model import load_model
-from cosim_plugins.identify.terms import ForceTerm, Param, quadratic_drag
+from cosim_plugins.identify.terms import EffectParam, ForceTerm, quadratic_drag
 from cosim_plugins.models.physical import PhysicalModel, forces, synthetic_plant
 
 
@@ -95,7 +95,7 @@ def test_extra_term_is_fitted_jointly(make_dataset, tmp_path):
 
 
 def test_custom_term_and_unregistered_term_on_load(tmp_path):
-    push = ForceTerm("push", (Param("fx", 0.2, -1.0, 1.0, "uN"),),
+    push = ForceTerm("push", (EffectParam("fx", 0.2, -1.0, 1.0, "uN"),),
                      lambda p, v, u, prm: np.broadcast_to([prm["fx"], 0.0, 0.0], p.shape))
     model = PhysicalModel.from_params({**syn.TRUE_PARAMS, "push.fx": 0.5}, terms=[push])
     assert "push.fx" in model.params()

@@ -9,7 +9,7 @@ the force is +Cd1 w. No library effect has this curl-type field
 import numpy as np
 
 from cosim import hookimpl
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 
 
 def swirl_force(p, v, u, params):
@@ -21,7 +21,7 @@ def swirl_force(p, v, u, params):
 
 SWIRL = Effect(
     name="swirl",
-    params=(Param("omega", 0.0, -2.0, 2.0, "rad/s"),),
+    params=(EffectParam("omega", 0.0, -2.0, 2.0, "rad/s"),),
     force=swirl_force,
     doc="Water turning about the vertical axis through the centre: drag on v - Omega z x p.",
 )

@@ -3,7 +3,7 @@
 import numpy as np
 
 from cosim import hookimpl
-from cosim_plugins.identify.effect import Effect, Param
+from cosim_plugins.identify.effect import Effect, EffectParam
 
 
 def _push(p, v, u, prm):
@@ -12,7 +12,7 @@ def _push(p, v, u, prm):
     return f
 
 
-PUSH = Effect(name="test_push", params=(Param("f_x", 0.0, -20.0, 20.0, "uN", 1.0),), force=_push,
+PUSH = Effect(name="test_push", params=(EffectParam("f_x", 0.0, -20.0, 20.0, "uN", 1.0),), force=_push,
               doc="A constant push along x (a test effect).")
 
 
