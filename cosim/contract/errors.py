@@ -23,6 +23,11 @@ class ScenarioError(UserError):
     """A scenario file or override is invalid; the message names the field and line."""
 
 
+class WiringError(ScenarioError):
+    """The scenario's components cannot be wired as written (a port that does not exist, two sources for one
+    input, a cycle without a delayed edge...)."""
+
+
 class PluginError(UserError):
     """A plugin could not be loaded, or registered something invalid."""
 
@@ -55,6 +60,20 @@ class ComponentFault(RuntimeError):
     Raised by the framework, after the step's (safe) outputs went out, when a
     component has set its ``fault`` attribute (see :class:`Component`).
     """
+
+
+class PortTimeout(RuntimeError):
+    """No value of ``component.port`` (of any of its outputs: ``port`` None) for tick ``stamp``: the run's
+    scheduler turns it into a :class:`RunError` naming the component that did not answer."""
+
+    def __init__(self, component: str, port: str | None, stamp: int):
+        super().__init__(f"no value of {component}.{port or '*'} for tick {stamp}")
+        self.component, self.port, self.stamp = component, port, stamp
+
+    @property
+    def what(self) -> str:
+        """The missing value in words: "its output 'x'" or "its outputs"."""
+        return f"its output {self.port!r}" if self.port else "its outputs"
 
 
 class RunError(Exception):

@@ -17,19 +17,8 @@ from __future__ import annotations
 import numpy as np
 import zenoh
 
+from cosim.contract.errors import PortTimeout
 from cosim.runtime import bus
-
-
-class PortTimeout(RuntimeError):
-    """No value of ``component.port`` (of any of its outputs: ``port`` None) for tick ``stamp``."""
-
-    def __init__(self, component: str, port: str | None, stamp: int):
-        super().__init__(f"no value of {component}.{port or '*'} for tick {stamp}")
-        self.component, self.port, self.stamp = component, port, stamp
-
-    @property
-    def what(self) -> str:
-        return f"its output {self.port!r}" if self.port else "its outputs"
 
 
 class PortStore:

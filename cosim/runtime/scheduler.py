@@ -29,7 +29,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from cosim.contract.component import ComponentFault, InputEnded
-from cosim.contract.errors import OutputWriteError, RunError, RunFault, WriteError  # noqa: F401 (named here)
+from cosim.contract.errors import OutputWriteError, PortTimeout, RunError, RunFault, WriteError  # noqa: F401 (named here)
 from cosim.runtime.groups import (  # noqa: F401 (the runner and the nodes name them here too)
     CLOSE_TIMEOUT_S,
     FLUSH_GRACE_S,
@@ -45,7 +45,7 @@ from cosim.runtime.groups import (  # noqa: F401 (the runner and the nodes name 
 )
 from cosim.runtime.pacing import Pacer
 from cosim.runtime.placement import keep_thread_off
-from cosim.runtime.portcache import PortStore, PortTimeout, expected_stamp
+from cosim.runtime.portcache import PortStore, expected_stamp
 from cosim.runtime.wiring import Wiring
 from cosim.scenario.schema import Scenario
 

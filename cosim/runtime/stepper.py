@@ -15,8 +15,9 @@ import numpy as np
 import zenoh
 
 from cosim.contract.component import Component, ComponentError, ComponentFault
+from cosim.contract.errors import PortTimeout
 from cosim.runtime import bus
-from cosim.runtime.portcache import PortStore, PortTimeout, port_slots
+from cosim.runtime.portcache import PortStore, port_slots
 from cosim.runtime.wiring import Wiring
 from cosim.scenario.paths import make_path
 from cosim.scenario.schema import Scenario

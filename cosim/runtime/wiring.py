@@ -12,13 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cosim.contract.component import Port
-from cosim.contract.errors import UserError
+from cosim.contract.errors import UserError, WiringError
 from cosim.contract.plugins import lookup
 from cosim.scenario.schema import Scenario
-
-
-class WiringError(UserError):
-    """The scenario's components cannot be wired as written."""
 
 
 @dataclass(frozen=True)

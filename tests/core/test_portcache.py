@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from cosim.contract.component import Port
+from cosim.contract.errors import PortTimeout
 from cosim.runtime import bus
-from cosim.runtime.portcache import PortCache, PortStore, PortTimeout, expected_stamp, port_slots
+from cosim.runtime.portcache import PortCache, PortStore, expected_stamp, port_slots
 
 #: producer p: a vector, a scalar and a 2x2 matrix (8 values a row); q: a pair; scope: no outputs
 OUTPUTS = {"p": (Port("v", (3,), "m"), Port("s", (), "Hz"), Port("m", (2, 2), "1")),

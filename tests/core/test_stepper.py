@@ -14,8 +14,9 @@ import pytest
 import zenoh
 
 from cosim.contract.component import ComponentError, ComponentFault, Port
+from cosim.contract.errors import PortTimeout
 from cosim.runtime import bus
-from cosim.runtime.portcache import PortCache, PortStore, PortTimeout
+from cosim.runtime.portcache import PortCache, PortStore
 from cosim.runtime.stepper import Stepper
 from cosim.runtime.wiring import Edge, Wiring
 

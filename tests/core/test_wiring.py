@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.runtime.wiring import Edge, WiringError, build_wiring, connection_table
+from cosim.contract.errors import WiringError
+from cosim.runtime.wiring import Edge, build_wiring, connection_table
 from cosim.scenario.schema import load_scenario
 from cosim_plugins.resources import SCENARIOS_DIR
 
