@@ -309,6 +309,12 @@ EQUIVALENT: dict[str, str] = {
         ">= 1e-6 for > 1e-6 in the logs' period check: differs only when the rounding slack is met exactly",
     'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁsetup__mutmut_76':
         'the quantile computed at gate_prob 1.0 too: chi2.ppf(1.0, 3) is inf, the gate an inf stands for',
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_6':
+        "dt's default None: the framework always passes dt (a component's parameters hold the scenario's period)",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_8':
+        "dt's default dropped: the framework always passes dt",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_11':
+        "dt's default 1.02 for 0.02: the framework always passes dt",
     # stepper.py
     'cosim.runtime.stepper.x_setup_component__mutmut_8':
         "getattr(component, 'uses_path', None): None is false, as False is",

@@ -372,3 +372,13 @@ def test_a_trip_whose_two_parts_fail_to_stop_names_both(make_driver):
     driver.step(DT, {"omega": np.array([np.nan, 0.0, 0.0])})
     assert driver.fault.endswith("; stopping the outputs: daq_error: RuntimeError: AO task already released; "
                                  "supply_error: RuntimeError: AO task already released")
+
+
+def test_the_driver_takes_the_scenarios_period():
+    """dt = 10 ms: the step-time watchdog's limit is its ticks at 10 ms each, not at a default 20 ms."""
+    driver = InverseMagnetics()
+    driver.setup({"dt": 0.01, "watchdog_ticks": 5, "watchdog_clock": "sim"}, np.random.default_rng(0))
+    try:
+        assert driver.dt == 0.01 and driver.watchdog.timeout_s == pytest.approx(0.05)
+    finally:
+        driver.close()
