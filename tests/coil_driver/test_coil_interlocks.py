@@ -382,3 +382,13 @@ def test_the_driver_takes_the_scenarios_period():
         assert driver.dt == 0.01 and driver.watchdog.timeout_s == pytest.approx(0.05)
     finally:
         driver.close()
+
+
+def test_a_close_whose_two_parts_fail_to_stop_names_both(make_driver):
+    rig = Rig(reference=RecordingReference([], on_stop=_refuse_to_stop),
+              supplies=_QuietSupplies([], on_stop=_refuse_to_stop))
+    driver = make_driver(rig=rig, watchdog_clock="sim")
+    driver.step(0.0, {"omega": spin(9.0)})
+    driver.close()
+    assert driver.fault == ("daq_error: RuntimeError: AO task already released; "
+                            "supply_error: RuntimeError: AO task already released")
