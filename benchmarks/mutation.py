@@ -307,6 +307,24 @@ EQUIVALENT: dict[str, str] = {
         'q_diag without dtype: integers give the same float covariances',
     'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁ_process_noise__mutmut_40':
         ">= 1e-6 for > 1e-6 in the logs' period check: differs only when the rounding slack is met exactly",
+    'cosim_plugins.estimators.kalman.xǁKalmanEstimatorǁsetup__mutmut_76':
+        'the quantile computed at gate_prob 1.0 too: chi2.ppf(1.0, 3) is inf, the gate an inf stands for',
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_6':
+        "dt's default None: the framework always passes dt (a component's parameters hold the scenario's period)",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_8':
+        "dt's default dropped: the framework always passes dt",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_11':
+        "dt's default 1.02 for 0.02: the framework always passes dt",
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_45':
+        'the centre matrix pseudo-inverse left real (astype(None)): it is real, and its products with the complex '
+        'field phasors are the same complex numbers',
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_141':
+        'closed = None for False: only ever read as a truth value',
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁsetup__mutmut_143':
+        '_reported = None for False: only ever read as a truth value',
+    'cosim_plugins.coil_driver.inverse.xǁInverseMagneticsǁclose__mutmut_21':
+        "the unreported trip inserted at 1 for 0: a trip stops the rig when it latches and Rig.stop is idempotent, "
+        "so at close an unreported trip comes with no failures and is the list's only entry",
     # stepper.py
     'cosim.runtime.stepper.x_setup_component__mutmut_8':
         "getattr(component, 'uses_path', None): None is false, as False is",

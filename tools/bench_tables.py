@@ -195,8 +195,9 @@ def _mutation(d: dict) -> str:
 
 
 #: the kept runs of benchmarks/mutation.py, one module (or two) each, in the benchmark's order of targets
-MUTATION_DATA = ("mutation_interlocks", "mutation_wiring", "mutation_ekf", "mutation_noise",
-                 "mutation_stepper_portcache", "mutation_raw_log", "mutation_convert", "mutation_verdict")
+MUTATION_DATA = ("mutation_interlocks", "mutation_wiring", "mutation_ekf", "mutation_noise", "mutation_stepper",
+                 "mutation_portcache", "mutation_raw_log", "mutation_convert", "mutation_verdict", "mutation_inverse",
+                 "mutation_kalman")
 
 
 def _soak(d: dict) -> str:

@@ -273,3 +273,16 @@ def test_without_ni_daqmx_the_driver_backend_daq_names_it():
     message = str(err.value)
     assert message.startswith("backend 'daq': nidaqmx could not create a task: NI-DAQmx (NI's driver) is missing")
     assert "\n" not in message
+
+
+def test_the_daq_backend_is_built_from_its_parameters():
+    """Nothing opened: the reference only holds what the parameters say (channels, rate, gain, range, prefill)."""
+    from cosim_plugins.coil_driver import params as coil_params
+    from cosim_plugins.coil_driver.inverse import build_rig
+
+    p = coil_params.read({"backend": "daq", "daq_channels": "Dev2/ao0:5", "daq_rate_hz": RATE,
+                          "daq_gain_v_per_v": GAIN, "daq_ao_max_v": 12.5, "daq_prefill_chunks": 3})
+    ref = build_rig(p, DT).reference
+    assert (ref.channels, ref.rate_hz, ref.n, ref.gain, ref.ao_max_v, ref.prefill) == (
+        "Dev2/ao0:5", RATE, N, GAIN, 12.5, 3)
+    assert ref.task is None and not ref.started

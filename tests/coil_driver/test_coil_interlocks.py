@@ -327,3 +327,68 @@ def test_a_driver_never_closed_does_not_keep_its_process_alive():
     except subprocess.TimeoutExpired:
         pytest.fail("the process did not end: the watchdog monitor kept it alive")
     assert proc.returncode == 0 and proc.stdout.strip() == "leaving without close()", proc.stderr
+
+
+# ---------------------------------------------------------------- what reaches the hardware at a trip, the monitor
+
+
+def test_a_thermal_trip_on_hardware_delivers_nothing_at_its_tick(make_driver):
+    """The tick whose energy exceeds the budget is refused before the hardware sees it: ten ticks delivered, the
+    eleventh trips, and the reference is stopped."""
+    omega = spin(9.0, (1.0, 0.0, 0.0))
+    current = make_driver().step(0.0, {"omega": omega})["coil_voltage_amp"] / z_abs(9.0)
+    budget = 10.5 * current.max() ** 2 * R / 2 * DT
+    log = []
+    reference = RecordingReference(log)
+    driver = make_driver(rig=Rig(reference), thermal_budget_j=budget, thermal_window_s=1.0, watchdog_clock="sim")
+    for k in range(11):
+        out = driver.step(k * DT, {"omega": omega})
+    assert driver.fault.startswith("thermal_budget: coil ") and np.all(out["coil_voltage_amp"] == 0)
+    assert [tick for tick, _ in reference.delivered] == list(range(10))
+    assert log[-1] == "reference.stop"
+
+
+def test_the_wall_clock_monitor_is_a_daemon_thread_and_a_simulated_clock_starts_none(make_driver):
+    sim = make_driver(watchdog_clock="sim")
+    sim.step(0.0, {"omega": spin(5.0)})
+    assert sim._monitor is None  # steps on simulated time are checked in step() alone
+    wall = make_driver(watchdog_clock="wall")
+    wall.step(0.0, {"omega": spin(5.0)})
+    assert wall._monitor is not None and wall._monitor.daemon and wall._monitor.is_alive()
+
+
+class _QuietSupplies(RecordingReference):
+    """Supplies that read nothing back and, like the reference, may refuse to stop."""
+
+    def poll(self, tick):
+        return []
+
+
+def test_a_trip_whose_two_parts_fail_to_stop_names_both(make_driver):
+    rig = Rig(reference=RecordingReference([], on_stop=_refuse_to_stop),
+              supplies=_QuietSupplies([], on_stop=_refuse_to_stop))
+    driver = make_driver(rig=rig, watchdog_clock="sim")
+    driver.step(0.0, {"omega": spin(9.0)})
+    driver.step(DT, {"omega": np.array([np.nan, 0.0, 0.0])})
+    assert driver.fault.endswith("; stopping the outputs: daq_error: RuntimeError: AO task already released; "
+                                 "supply_error: RuntimeError: AO task already released")
+
+
+def test_the_driver_takes_the_scenarios_period():
+    """dt = 10 ms: the step-time watchdog's limit is its ticks at 10 ms each, not at a default 20 ms."""
+    driver = InverseMagnetics()
+    driver.setup({"dt": 0.01, "watchdog_ticks": 5, "watchdog_clock": "sim"}, np.random.default_rng(0))
+    try:
+        assert driver.dt == 0.01 and driver.watchdog.timeout_s == pytest.approx(0.05)
+    finally:
+        driver.close()
+
+
+def test_a_close_whose_two_parts_fail_to_stop_names_both(make_driver):
+    rig = Rig(reference=RecordingReference([], on_stop=_refuse_to_stop),
+              supplies=_QuietSupplies([], on_stop=_refuse_to_stop))
+    driver = make_driver(rig=rig, watchdog_clock="sim")
+    driver.step(0.0, {"omega": spin(9.0)})
+    driver.close()
+    assert driver.fault == ("daq_error: RuntimeError: AO task already released; "
+                            "supply_error: RuntimeError: AO task already released")
