@@ -48,17 +48,18 @@ class Fitter:
         ev = jm.evaluate(self.tte, self.test_starts, self.lead, self.steps)
         return Fit(jm, ev, _summary(ev))
 
-    def with_effects(self, before: Fit, effects, say=None, quick: bool = False) -> tuple[Fit, bool]:
+    def with_effects(self, before: Fit, effects, say=None, quick: bool = False, fresh: bool = True
+                     ) -> tuple[Fit, bool]:
         """(``before``'s model plus ``effects``, all parameters refitted jointly; whether the new parameters
         change the predictions at all). ``quick``: a screening fit (:data:`QUICK_NFEV` evaluations from the
         listed starts, no equation-error starts, no open-loop polish, every :data:`QUICK_STRIDE`-th training
-        window)."""
+        window); ``fresh=False``: no equation-error starts (the effects' own values are already a good start)."""
         if quick:
             fitted = _with_effects(before.model, effects, self.ttr, self.fit_starts[::QUICK_STRIDE], self.fit_len,
                                    replace(self.s, max_nfev=QUICK_NFEV), say, self.score, None, fresh=False)
         else:
             fitted = _with_effects(before.model, effects, self.ttr, self.fit_starts, self.fit_len, self.s, say,
-                                   self.score, self.polish)
+                                   self.score, self.polish, fresh=fresh)
         fit = self.evaluate(fitted.model)
         fit.fitted = fitted
         return fit, fitted.identifiable

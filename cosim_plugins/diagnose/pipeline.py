@@ -332,8 +332,8 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
     if not supports_effects(reference.host):
         return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None
 
-    def refit(effect):
-        fit, _ = fitter.with_effects(final, [effect])
+    def refit(effect):  # its coefficients start at the linearised regression's: no other start is needed
+        fit, _ = fitter.with_effects(final, [effect], fresh=False)
         return fit.fitted, fit.summary, fit.ev
 
     test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
