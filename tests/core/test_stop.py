@@ -21,9 +21,14 @@ TOY = Path(__file__).parent / "data" / "toy.yaml"
 DT_S = 0.02
 
 
+#: the override every run of this module sets, which its nodes are given too: it tells them from the nodes of
+#: another test running the toy scenario meanwhile (tests/security runs it with --processes for 120 s)
+OURS = "duration_s=3000"
+
+
 def _start(out: Path, *extra: str) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "cosim.cli", "run", str(TOY), "--out", str(out), "--quiet",
-           "--set", "duration_s=3000", *extra]
+           "--set", OURS, *extra]
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -43,13 +48,14 @@ def _wait_for_rows(out: Path, proc: subprocess.Popen, rows: int, timeout_s: floa
 
 
 def _nodes_of(scenario_marker: str) -> list[str]:
+    """The command lines of the running nodes of this module's runs of ``scenario_marker``."""
     found = []
     for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
         try:
             text = cmdline.read_bytes().replace(b"\0", b" ").decode()
         except OSError:
             continue
-        if "cosim.cli node" in text and scenario_marker in text:
+        if "cosim.cli node" in text and scenario_marker in text and f"--set {OURS}" in text:
             found.append(text)
     return found
 
