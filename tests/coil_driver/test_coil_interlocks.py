@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -305,6 +306,7 @@ def test_the_monitor_stops_the_rig_once_and_checks_nothing_after_close(make_driv
 
 NEVER_CLOSED = """
 import sys
+import threading
 import numpy as np
 sys.path.insert(0, {tests!r})
 from coil_fakes import RecordingReference, spin
@@ -392,3 +394,99 @@ def test_a_close_whose_two_parts_fail_to_stop_names_both(make_driver):
     driver.close()
     assert driver.fault == ("daq_error: RuntimeError: AO task already released; "
                             "supply_error: RuntimeError: AO task already released")
+
+
+# ---------------------------------------------------------------- the monitor's pace, close()'s waits, the coils' field
+
+
+class _LooksOnce:
+    """Stands in for the monitor's stop event: records the period of its first wait and stops it there."""
+
+    def __init__(self):
+        self.periods = []
+
+    def wait(self, period_s):
+        self.periods.append(period_s)
+        return True
+
+    def set(self):
+        pass
+
+
+@pytest.mark.parametrize("ticks, period_s", [(5, 0.010), (1, 0.005)])
+def test_the_monitor_looks_every_half_period_or_quarter_time_out_if_shorter(make_driver, ticks, period_s):
+    """At 20 ms: every 10 ms when the watchdog allows 100 ms; every 5 ms when it allows 20 ms."""
+    driver = make_driver(watchdog_clock="sim", watchdog_ticks=ticks)
+    driver._monitor_stop = stop = _LooksOnce()
+    driver._watch()
+    assert stop.periods == [pytest.approx(period_s, rel=1e-12)]
+
+
+class _Waits:
+    """Stands in for the monitor thread and the driver's lock: records the time-outs close() waits with."""
+
+    def __init__(self):
+        self.joins, self.acquires, self.released = [], [], 0
+
+    def join(self, timeout=None):
+        self.joins.append(timeout)
+
+    def acquire(self, timeout=-1):
+        self.acquires.append(timeout)
+        return True
+
+    def release(self):
+        self.released += 1
+
+
+def test_close_waits_two_seconds_at_most_for_the_monitor_and_for_a_step_in_progress(make_driver):
+    rig = CountingRig()
+    driver = make_driver(rig=rig, watchdog_clock="sim")
+    driver._monitor = driver._lock = waits = _Waits()
+    driver.close()
+    assert waits.joins == [2.0] and waits.acquires == [2.0] and waits.released == 1 and rig.stops == 1
+
+
+def test_close_called_on_the_monitor_thread_does_not_wait_for_itself(make_driver):
+    rig = CountingRig()
+    driver = make_driver(rig=rig, watchdog_clock="sim")
+    errors = []
+
+    def close_here():
+        try:
+            driver.close()
+        except Exception as exc:  # joining the current thread raises RuntimeError
+            errors.append(exc)
+
+    driver._monitor = threading.Thread(target=close_here)
+    driver._monitor.start()
+    driver._monitor.join(timeout=10.0)
+    assert not driver._monitor.is_alive() and errors == [] and driver.closed and rig.stops == 1
+
+
+def test_a_monitor_trip_after_the_last_step_is_named_at_close(make_driver):
+    driver = make_driver(rig=CountingRig(), watchdog_clock="wall", watchdog_ticks=5)
+    driver.use_monitor = False  # this test is the monitor
+    driver.now = clock = Clock()
+    driver.step(0.0, {"omega": spin(9.0)})
+    clock.now += 0.2
+    assert driver.check_watchdog().name == "watchdog" and driver.fault is None  # no step has reported it
+    driver.close()
+    assert driver.fault == ("watchdog: no new command for 5 ticks (200 ms since the last, limit 100 ms): outputs "
+                            "ramped to zero (after the last step)")
+
+
+def test_the_centre_field_is_the_winding_average_of_every_turn(make_driver):
+    """The current in each coil of the rotation plane against the loop law integrated over the winding's
+    cross-section (r 180-215 mm, z 150-190 mm from the centre, 795 turns): B = N mu0 <r^2 / (2 (r^2 + z^2)^1.5)>;
+    two opposite coils share the field, so each carries B / (2 g) amplitude."""
+    from scipy import integrate
+
+    def loop(z, r):
+        return 4e-7 * np.pi * r**2 / (2 * (r**2 + z**2) ** 1.5)
+
+    g = 795 * integrate.dblquad(loop, 0.180, 0.215, 0.150, 0.190)[0] / (0.035 * 0.040)  # [T/A]
+    out = make_driver(**LOOSE, field_mT=3.0).step(0.0, {"omega": spin(9.0, (1.0, 0.0, 0.0))})
+    current_a = out["coil_voltage_amp"] / z_abs(9.0)
+    assert np.allclose(current_a[2:], 3e-3 / (2 * g), rtol=2e-3)  # coils +-y, +-z
+    assert np.allclose(current_a[:2], 0.0, atol=1e-12)  # +-x: along the axis of rotation

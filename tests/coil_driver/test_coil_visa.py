@@ -43,6 +43,11 @@ def test_configure_run_and_stop_leave_each_supply_in_the_state_they_command(make
     assert driver.fault is None
 
 
+def test_each_supply_session_answers_within_the_timeout_given(make_driver, sim_supplies):
+    driver = make_driver(**visa_params(sim_supplies, visa_timeout_ms=1234))
+    assert [res.timeout for res in driver.rig.supplies.supplies] == [1234] * 12  # [ms]
+
+
 def test_the_reference_starts_before_the_outputs_go_on_and_ramps_before_they_go_off(make_driver, sim_supplies):
     seen = {}
     reference = RecordingReference([], on_start=lambda: seen.setdefault("start", sim_supplies.outputs()),

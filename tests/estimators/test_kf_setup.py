@@ -33,8 +33,9 @@ def linear_file(linear_kinds, tmp_path):
     return lookup("model", "test-linear")().save(tmp_path / "linear.npz")
 
 
-def swimmer_log(path: Path, n: int = 400, dt: float = 0.02, seed: int = 0) -> Path:
-    """A raw log of the linear test swimmer (its damped_swimmer matrices at 20 ms) with process and frame noise."""
+def swimmer_log(path: Path, n: int = 400, dt: float = 0.02, seed: int = 0, velocity_sd_mm_s: float = 2.0) -> Path:
+    """A raw log of the linear test swimmer (its damped_swimmer matrices at 20 ms) with process noise (0.01 mm on
+    positions, ``velocity_sd_mm_s`` on velocities, per step) and 0.05 mm frame noise."""
     from linear_plugin import damped_swimmer
 
     A, B, c = damped_swimmer()
@@ -42,7 +43,7 @@ def swimmer_log(path: Path, n: int = 400, dt: float = 0.02, seed: int = 0) -> Pa
     u = np.column_stack([8 * np.cos(0.3 * np.arange(n) * 0.02), 8 * np.sin(0.3 * np.arange(n) * 0.02), np.zeros(n)])
     x = np.zeros((n, 6))
     for k in range(n - 1):
-        x[k + 1] = A @ x[k] + B @ u[k] + c + rng.normal(0, [0.01] * 3 + [2.0] * 3)
+        x[k + 1] = A @ x[k] + B @ u[k] + c + rng.normal(0, [0.01] * 3 + [velocity_sd_mm_s] * 3)
     write_log(path, np.round(np.arange(n) * dt * 1e3), u * 2 * np.pi, (x[:, :3] + rng.normal(0, 0.05, (n, 3))) * 1e-3)
     return path
 
@@ -128,12 +129,14 @@ def test_the_drift_state_takes_its_stationary_variance_from_q_diag(linear_file, 
 
 
 def test_q_is_fitted_on_the_logs_named_over_the_horizon_and_scaled(linear_file, tmp_path):
-    logs = [swimmer_log(tmp_path / f"log{i}.csv", seed=i) for i in range(2)]
+    # 20 mm/s of velocity noise a step: a Q the fit cannot put at zero (at 2 mm/s the camera explains all)
+    logs = [swimmer_log(tmp_path / f"log{i}.csv", seed=i, velocity_sd_mm_s=20.0) for i in range(2)]
     kf = setup_kf(model=str(linear_file), q_logs=[str(tmp_path / "log*.csv")], q_horizon_s=0.3, q_scale=2.0,
                   noise_px=1.0, pixel_mm=0.1, drift_tau_s=4.0)
     model = lookup("model", "test-linear")()
     expected = fit_process_noise(model, Dataset.from_paths([str(p) for p in logs]), camera_variance(1.0, 0.1), 0.02,
                                  4.0, 15)
+    assert np.all((expected.q[3:6] > 0.6 * 400.0) & (expected.q[3:6] < 1.4 * 400.0))  # near the 20^2 drawn
     np.testing.assert_allclose(kf.noise.q, 2.0 * expected.q, rtol=1e-12)
     np.testing.assert_allclose(kf.noise.drift0, expected.drift0, rtol=1e-12)
     assert kf.noise.horizons[-1] == 15 and kf.noise.windows == expected.windows
@@ -188,6 +191,13 @@ def test_q_logs_that_name_no_log_are_refused(tmp_path, monkeypatch, pattern, mes
     with pytest.raises(ComponentError) as err:
         kalman._dataset([pattern])
     assert str(err.value).startswith(message)
+
+
+def test_set_up_without_q_logs_fits_q_on_the_training_logs_of_the_profile_named(linear_file, asked):
+    with pytest.raises(ComponentError) as err:
+        setup_kf(model=str(linear_file), dataset="lab")
+    assert str(err.value) == "dataset: no dataset in this test"
+    assert asked["datasets"] == [(True, "lab")]
 
 
 def test_without_q_logs_the_paper_training_logs_of_the_profile_are_read(tmp_path, monkeypatch):
