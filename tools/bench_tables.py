@@ -314,7 +314,8 @@ def archive_table() -> str:
 
 
 DRIFT_SEEDS = (("blind_drift_s21", "seed 21 (first draw)"), ("blind_drift_s22", "seed 22 (stopped)"),
-               ("blind_drift_s23", "seed 23 (fresh, size gates)"), ("blind_drift_s24", "seed 24 (fresh, trend fits)"))
+               ("blind_drift_s23", "seed 23 (fresh, size gates)"), ("blind_drift_s24", "seed 24 (fresh, trend fits)"),
+               ("blind_drift_s42", "seed 42 (fresh, one case at a time)"))
 
 
 def drift_table() -> str:
@@ -341,7 +342,7 @@ def drift_table() -> str:
         ["`drift.named`: an effect named (nothing is hidden)", *[str(o["drift"]["named"]) for o in outs], ""],
         ["`no_effect.drift_false_flags` (steady controls and `none` cases)", *[flags(o) for o in outs], "0"],
         ["`no_effect.false_alarms` (`none` cases)", *[alarms(o) for o in outs], "0"],
-        ["time per case (two at once, a busy machine)", *[seconds(o) for o in outs], ""],
+        ["time per case (a busy machine)", *[seconds(o) for o in outs], ""],
     ]
     return table(["figure", *[label for _, label in DRIFT_SEEDS], "target"], rows)
 
