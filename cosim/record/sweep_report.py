@@ -148,8 +148,8 @@ def largest_below(rows: list[dict], figure: Figure, threshold: float) -> list[di
 
 
 def largest_below_lines(found: list[dict], figure: Figure, threshold: float) -> list[str]:
-    """:func:`largest_below`'s entries as printed lines: ``largest interval_s with mean tracking
-    error below 4.6 mm: 1.0 (model=plain estimator=kf)``."""
+    """:func:`largest_below`'s entries as printed lines: ``largest kp with rms speed error below
+    25 rad/s: 0.1 (load=high)``, the other labels in brackets when there are any."""
     lines = []
     for item in found:
         group = " ".join(f"{k}={v}" for k, v in item.items()

@@ -398,7 +398,7 @@ def line_of(node: YamlDocument | yaml.Node | None, loc) -> int | None:
 def parse_override(item: str) -> tuple[str, Any]:
     """``KEY=VALUE`` (``--set``) as ``(dotted key, value)``, the value read as YAML."""
     if "=" not in item:
-        raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.camera.params.interval_s=0.1")
+        raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.NAME.params.PARAM=VALUE")
     key, raw = item.split("=", 1)
     try:
         value = yaml.load(raw, Loader=_Loader) if raw else None
@@ -428,12 +428,12 @@ TOP_LEVEL_AXES = ("seed", "profile", "duration_s")
 def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]]:
     """One ``(labels, overrides)`` per combination of the sweep axes (product order).
 
-    An axis named by a dotted path (``components.camera.params.interval_s``)
-    sets that field; its label is the last part (``interval_s``); so does an
+    An axis named by a dotted path (``components.controller.params.kp``)
+    sets that field; its label is the last part (``kp``); so does an
     axis named by a top-level field (``seed``, ``profile``: :data:`TOP_LEVEL_AXES`). An axis with
-    a plain name (``estimator``) lists mappings of dotted paths to values,
+    a plain name (``variant``) lists mappings of dotted paths to values,
     each with an optional ``label`` (default: the first value) and any other
-    plain keys as further labels (``model: physical``).
+    plain keys as further labels (``model: linear``).
     Overrides are ``key=value`` strings as ``--set`` takes them.
     """
     axes = list(scenario.sweep.items())
