@@ -88,9 +88,14 @@ class Figure:
         return unit_of(self.key)[1]
 
     @property
+    def words(self) -> str:
+        """The key in words, without its unit: ``tracking error``, ``saturated fraction``."""
+        return unit_of(self.key)[0].replace("_", " ")
+
+    @property
     def label(self) -> str:
-        """In words: ``mean tracking error``, ``rms speed error``."""
-        return f"{self.part or 'mean'} {unit_of(self.key)[0].replace('_', ' ')}"
+        """The part read, in words: ``mean tracking error``, ``rms speed error``."""
+        return f"{self.part or 'mean'} {self.words}"
 
     def with_unit(self, text: str) -> str:
         """``text [unit]``, or ``text`` alone when the figure has no unit."""

@@ -45,6 +45,19 @@ def _groups(rows: list[dict], axis: str) -> tuple[list[str], dict[tuple, list[di
     return others, {key: sorted(members, key=lambda r: r[axis]) for key, members in groups.items()}
 
 
+def replicated(rows: list[dict]) -> bool:
+    """Whether ``rows`` repeat runs over a replicate label (``seed``): then they are pooled."""
+    return bool(rows) and any(k in label_keys(rows) for k in REPLICATE_LABELS)
+
+
+def figure_label(rows: list[dict], figure: Figure) -> str:
+    """The figure in words as ``rows`` hold it: ``mean tracking error`` (a figure with parts, or
+    pooled over seeds), ``rms speed error`` (a part), ``saturated fraction`` (one run's number)."""
+    if figure.part or replicated(rows) or any(isinstance(r.get(figure.key), dict) for r in rows):
+        return figure.label
+    return figure.words
+
+
 def pool_replicates(rows: list[dict], figure: Figure) -> list[dict]:
     """Sweep rows pooled into one per combination of the labels other than a replicate label
     (``seed``), each ``{**labels, status, figure.name: pooled, seeds}``; ``pooled`` is the figure's
@@ -53,7 +66,7 @@ def pool_replicates(rows: list[dict], figure: Figure) -> list[dict]:
     extremes (``min_mean``/``max_mean``) and their number (``n``), or None when no run has it;
     status ``ok`` only if every run's is and every run has the figure. Rows pass as they are when
     none has a replicate label."""
-    if not rows or not any(k in label_keys(rows) for k in REPLICATE_LABELS):
+    if not replicated(rows):
         return rows
     labels = [k for k in label_keys(rows) if k not in REPLICATE_LABELS]
     groups: dict[tuple, list[dict]] = {}
@@ -147,15 +160,16 @@ def largest_below(rows: list[dict], figure: Figure, threshold: float) -> list[di
     return out
 
 
-def largest_below_lines(found: list[dict], figure: Figure, threshold: float) -> list[str]:
+def largest_below_lines(found: list[dict], label: str, figure: Figure, threshold: float) -> list[str]:
     """:func:`largest_below`'s entries as printed lines: ``largest kp with rms speed error below
-    25 rad/s: 0.1 (load=high)``, the other labels in brackets when there are any."""
+    25 rad/s: 0.1 (load=high)``, the other labels in brackets when there are any; ``label`` the
+    figure in words (:func:`figure_label`)."""
     lines = []
     for item in found:
         group = " ".join(f"{k}={v}" for k, v in item.items()
                          if k not in ("axis", "largest_below", "figure", "threshold"))
         unit = f" {figure.unit}" if figure.unit else ""
-        lines.append(f"largest {item['axis']} with {figure.label} below {threshold:g}{unit}: "
+        lines.append(f"largest {item['axis']} with {label} below {threshold:g}{unit}: "
                      f"{item['largest_below']}" + (f" ({group})" if group else ""))
     return lines
 
@@ -174,6 +188,7 @@ def sweep_plot(rows: list[dict], out_dir: Path, figure: Figure, threshold: float
     import matplotlib.pyplot as plt
 
     files = []
+    label = figure_label(rows, figure)
     rows = pool_replicates(rows, figure)
     if not any(_mean(r, figure) is not None for r in rows):
         return files
@@ -193,8 +208,8 @@ def sweep_plot(rows: list[dict], out_dir: Path, figure: Figure, threshold: float
             ax.axhline(threshold, color="k", ls="--", lw=1,
                        label=f"{threshold:g} {figure.unit}".rstrip())
         ax.set_xlabel(axis_label(axis))
-        ax.set_ylabel(figure.with_unit(figure.label))
-        ax.set_title(f"{title + ': ' if title else ''}{figure.label} against {axis_label(axis)}", fontsize=10)
+        ax.set_ylabel(figure.with_unit(label))
+        ax.set_title(f"{title + ': ' if title else ''}{label} against {axis_label(axis)}", fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         fig.tight_layout()

@@ -33,6 +33,7 @@ from cosim.contract.errors import UserError
 from cosim.contract.plugins import lookup
 from cosim.record.summary import TRACKING, metric_keys, other_figures, sweep_table
 from cosim.record.sweep_report import (
+    figure_label,
     figure_missing,
     largest_below_lines,
     pooled_table,
@@ -252,7 +253,8 @@ class SweepRecord:
         if progress:
             print(table)
             if figure is not None and spec.threshold is not None:
-                for line in largest_below_lines(summary["largest_below_threshold"], figure, spec.threshold):
+                label = figure_label(rows, figure)
+                for line in largest_below_lines(summary["largest_below_threshold"], label, figure, spec.threshold):
                     print(line)
         return summary
 

@@ -11,6 +11,7 @@ import pytest
 from cosim.contract.errors import ScenarioError
 from cosim.contract.figures import Figure, unit_of
 from cosim.record.sweep_report import (
+    figure_label,
     figure_missing,
     largest_below,
     largest_below_lines,
@@ -50,8 +51,9 @@ def test_a_part_of_a_figure_is_pooled_tabled_and_thresholded_in_its_own_unit():
     # 0.4 is below 25 rad/s again, but 0.2 was not: the walk along the axis stops at 0.2
     found = largest_below(rows, SPEED, 25.0)
     assert found == [{"axis": "kp", "largest_below": 0.1, "figure": "speed_error_rad_s.rms", "threshold": 25.0}]
-    assert largest_below_lines(found, SPEED, 25.0) == ["largest kp with rms speed error below 25 rad/s: 0.1"]
-    text = table + "\n".join(largest_below_lines(found, SPEED, 25.0))
+    label = figure_label(rows, SPEED)
+    assert largest_below_lines(found, label, SPEED, 25.0) == ["largest kp with rms speed error below 25 rad/s: 0.1"]
+    text = table + "\n".join(largest_below_lines(found, label, SPEED, 25.0))
     assert "mm" not in text.replace("summary", "") and "tracking" not in text
 
 
@@ -69,6 +71,9 @@ def test_the_report_figure_defaults_to_the_tracking_error_only_when_runs_have_it
     assert report_figure(None, None, tracked, default="tracking_error_mm") == Figure("tracking_error_mm")
     assert report_figure("saturated_fraction", None, plain, default="tracking_error_mm") == Figure("saturated_fraction")
     assert figure_missing(plain, Figure("saturated_fraction")) is None
+    assert figure_label(plain, Figure("saturated_fraction")) == "saturated fraction"  # one run's number
+    seeded = [{"kp": 0.1, "seed": 1, "status": "ok", "saturated_fraction": 0.0}]
+    assert figure_label(seeded, Figure("saturated_fraction")) == "mean saturated fraction"  # over the seeds
     assert figure_missing(plain, Figure("saturation")) == (
         "report: figure 'saturation': no run of the sweep has it; its runs' figures: saturated_fraction")
 

@@ -59,7 +59,7 @@ def test_the_threshold_is_the_motors_saturation_and_no_millimetre_shows(sweep):
         expected = kp
     assert summary["largest_below_threshold"] == [{"axis": "kp_V_s_per_rad", "largest_below": expected,
                                                    "figure": "saturated_fraction", "threshold": 0.005}]
-    assert f"largest kp_V_s_per_rad with mean saturated fraction below 0.005: {expected}" in printed
+    assert f"largest kp_V_s_per_rad with saturated fraction below 0.005: {expected}" in printed
     assert summary["plots"] == ["sweep_kp_V_s_per_rad.png"] and (out / "sweep_kp_V_s_per_rad.png").is_file()
     written = (out / "summary.md").read_text() + (out / "summary.json").read_text() + printed
     assert not re.search(r"(?<![a-z])mm(?![a-z])", written, re.I)  # no mm, _mm or [mm] ("summary" is fine)
