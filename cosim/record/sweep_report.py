@@ -178,7 +178,7 @@ def sweep_plot(rows: list[dict], out_dir: Path, figure: Figure, threshold: float
                title: str = "") -> list[Path]:
     """One PNG per numeric axis, ``out_dir/sweep_AXIS.png``: the figure's mean against it (the
     seeds' spread as error bars), a line per group of other labels, ``threshold`` as a dashed line.
-    None when no run has the figure.
+    No file when no run has the figure.
 
     Lines differ in marker and dash and are drawn from the largest marker down, so coinciding lines stay visible.
     """
