@@ -178,7 +178,7 @@ DIAGNOSE_CODE = ("cosim_plugins.identify", "cosim_plugins.diagnose", "cosim_plug
 #: What the flow-KF sweep runs besides the diagnosis: the components of its loop, its scenario, the sweep's table.
 FLOW_KF_CODE = (*DIAGNOSE_CODE, "cosim_plugins.estimators", "cosim_plugins.controllers", "cosim_plugins.camera",
                 "cosim_plugins.coil_driver", "cosim_plugins.paths", "cosim/record/summary.py",
-                "cosim_plugins/scenarios/flow_kf_sweep.yaml")
+                "cosim/record/sweep_report.py", "cosim_plugins/scenarios/flow_kf_sweep.yaml")
 #: The sweep table's columns the effects page leaves out.
 SWEEP_DROP = ("max [mm]", "prediction x / y / z / RMSE [mm]", "solve median / p99 [ms]", "status")
 
@@ -247,10 +247,12 @@ BLOCKS: dict[str, Block] = {
         slow=True, depends=(*DIAGNOSE_CODE, "examples/lab_recording.py", "cosim_plugins/raw_log.py")),
     "lab-sensitivity": Block(
         ("cosim run lab_sensitivity --jobs 2 --out runs/lab_sensitivity",),
-        keep=pooled_columns(("change", "mean error [mm]", "min / max of the seeds' means [mm]")), slow=True,
+        keep=pooled_columns(("change", "mean tracking error [mm]", "min / max of the seeds' means [mm]")),
+        slow=True,
         depends=("cosim_plugins.profiles", "cosim_plugins.camera", "cosim_plugins.controllers",
                  "cosim_plugins.estimators", "cosim_plugins.coil_driver", "cosim_plugins.plant", "cosim_plugins.paths",
-                 "cosim/record/summary.py", "cosim_plugins/scenarios/lab_sensitivity.yaml")),
+                 "cosim/record/summary.py", "cosim/record/sweep_report.py",
+                 "cosim_plugins/scenarios/lab_sensitivity.yaml")),
     "flow-kf-sweep": Block(
         (f"cosim run diagnose/plain --set duration_s=40 --out runs/flow/logs --quiet {HIDDEN_FLOW}",
          "cosim fit runs/flow/logs/runs/*/log.csv --model physical --out runs/flow/plain",

@@ -24,7 +24,7 @@ from cosim.scenario.schema import json_schema, load_scenario, sweep_overrides
 # The bus (zenoh), the web viewer and the certificates' tools are imported by the commands that use
 # them, so `cosim scenarios` or `cosim plugins` does not load them.
 
-SCENARIO_HELP = "a scenario YAML file, or the name of a shipped one (see `cosim scenarios`), e.g. racetrack"
+SCENARIO_HELP = "a scenario YAML file, or the name of a shipped one (listed by `cosim scenarios`)"
 
 
 def add_commands(sub) -> None:
@@ -33,7 +33,8 @@ def add_commands(sub) -> None:
     p.add_argument("scenario", help=SCENARIO_HELP)
     p.add_argument("--out", type=Path, default=None, help="output folder (default: runs/<scenario name>)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a scenario field by dotted path, e.g. components.camera.params.interval_s=0.1")
+                   help="override a scenario field by dotted path, "
+                        "e.g. duration_s=10 or components.NAME.params.PARAM=VALUE")
     p.add_argument("--processes", action="store_true",
                    help="run every component as its own `cosim node` process over zenoh TCP on loopback")
     p.add_argument("--node-cpus", default=None, metavar="auto|none|LIST",

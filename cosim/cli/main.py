@@ -4,7 +4,7 @@ The framework's commands are in :mod:`cosim.cli.commands`, whose
 ``add_commands(subparsers)`` adds their subparsers and sets ``func`` to a
 callable taking the parsed arguments and returning an exit code. Plugins add
 theirs the same way through the ``cosim_register_commands`` hook (a domain's
-analyses, e.g. ``cosim diagnose``, ``cosim camera``).
+analyses and tools).
 """
 
 from __future__ import annotations

@@ -4,12 +4,11 @@
 appends each batch of ticks the recorder hands it (about one a second), so
 a run that is stopped or killed keeps what was recorded. Everything is sent
 in columns (``send_columns``) on the ``sim_time`` timeline, one call per
-entity and batch, not one per tick. The framework draws the path, the
-``truth``, ``measured`` and ``estimate`` positions (3-vectors, in metres)
-under ``world/`` and the tracking error; the domain's views
-(:mod:`cosim.contract.views`) draw the rest. Faults and stops are logged as
-text under ``events``. A component that logs something of its own (camera
-images) streams it to a part beside it (:func:`component_recording`) that
+entity and batch, not one per tick. The framework draws the reference path
+under ``world/`` and the tracking error when the run has a path; the domain's
+views (:mod:`cosim.contract.views`) draw the rest (its recorded positions, say). Faults and stops are logged as
+text under ``events``. A component that logs something of its own (a
+sensor's images) streams it to a part beside it (:func:`component_recording`) that
 joins it when the run ends (:func:`merge_parts`); the layout has the views it
 asks for.
 
@@ -34,9 +33,9 @@ TIMELINE = "sim_time"  # simulated time [s], the timeline of every file of a run
 PATH_LOG_HZ = 10.0
 MERGE_TIMEOUT_S = 600.0
 #: Whether a run's ``.rrd`` files end with rerun's footer, a manifest of every chunk. Off: rerun keeps
-#: that manifest in memory for the whole life of the file (about 0.5 kB per chunk; the racetrack
-#: sends ~15 chunks per batch, one batch a second of wall time, so ~20 MB over a 12 h run with
-#: ``--processes``) and builds the footer from it when the file closes. Without it the file is a
+#: that manifest in memory for the whole life of the file (about 0.5 kB per chunk; a loop of a
+#: dozen components sends ~15 chunks per batch, one batch a second of wall time, so ~20 MB over a
+#: 12 h run with ``--processes``) and builds the footer from it when the file closes. Without it the file is a
 #: whole recording that the viewer opens as before (rerun's own reader scans it instead of reading
 #: its manifest); ``rerun rrd optimize`` can add a footer afterwards (it reads the whole file).
 WRITE_FOOTER = False

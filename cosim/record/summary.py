@@ -1,4 +1,4 @@
-"""Figures of a run and of a sweep: summary.json content, the sweep table and plot.
+"""Figures of a run and of a sweep: summary.json content and the sweep table.
 
 Run figures: the framework's ``tracking_error_mm`` (distance of the ``truth``
 role to the reference path, {mean, std, max} [mm]), then those of the domain's
@@ -15,7 +15,6 @@ or the framework already uses is prefixed with the component's name.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -125,15 +124,16 @@ def _g(value: Any) -> str:
 
 
 def sweep_table(rows: list[dict]) -> str:
-    """Markdown table: the labels, the tracking error, the figure sets' columns, then the other
-    figures (the components' own)."""
+    """Markdown table: the labels, the tracking error (when a run has a path), the figure sets'
+    columns, then the other figures (the components' own), then the status. What a sweep adds
+    about one figure (pooled over seeds, a threshold, a plot) is :mod:`cosim.record.sweep_report`'s."""
     if not rows:
         return ""
     labels = label_keys(rows)
     cols = []
-    if any(r.get("tracking_error_mm") for r in rows) or not row_figure_keys(rows):
-        cols += [("tracking error [mm]", lambda r: _pm(r.get("tracking_error_mm"))),
-                 ("max [mm]", lambda r: _f(r.get("tracking_error_mm"), "max"))]
+    if any(r.get(TRACKING) for r in rows):  # runs with a path
+        cols += [("tracking error [mm]", lambda r: _pm(r.get(TRACKING))),
+                 ("max [mm]", lambda r: _f(r.get(TRACKING), "max"))]
     for figure_set in figure_sets():
         cols += figure_set.columns(rows)
     cols += [_figure_column(key, rows) for key in row_figure_keys(rows)]
@@ -151,154 +151,3 @@ def _f(d: dict | None, key: str, digits: int = 2) -> str:
 
 def _pm(d: dict | None) -> str:
     return f"{d['mean']:.2f} ± {d['std']:.2f}" if d else "-"
-
-
-def numeric_axes(rows: list[dict]) -> list[str]:
-    """The labels whose values are numbers and differ between rows: the axes a plot can use."""
-    return [k for k in label_keys(rows) if all(isinstance(r[k], (int, float)) for r in rows)
-            and len({r[k] for r in rows}) > 1]
-
-
-def _groups(rows: list[dict], axis: str) -> tuple[list[str], dict[tuple, list[dict]]]:
-    """The other labels, and the rows grouped by their values, each group sorted along ``axis``."""
-    others = [k for k in label_keys(rows) if k != axis]
-    groups: dict[tuple, list[dict]] = {}
-    for r in rows:
-        groups.setdefault(tuple(r[k] for k in others), []).append(r)
-    return others, {key: sorted(members, key=lambda r: r[axis]) for key, members in groups.items()}
-
-
-#: labels whose values repeat an experiment rather than change it: rows differing only in them are pooled
-REPLICATE_LABELS = ("seed",)
-
-
-def pool_replicates(rows: list[dict]) -> list[dict]:
-    """Rows differing only in a replicate label (``seed``) pooled into one: the tracking error's
-    mean is the mean of the runs' means, ``std`` their spread (sample standard deviation over the
-    seeds, 0 for one), ``max`` the largest, ``min_mean``/``max_mean`` the runs' extremes and ``n``
-    the number of runs; status ``ok`` only if every run's is. Rows without a replicate label pass."""
-    if not rows or not any(k in label_keys(rows) for k in REPLICATE_LABELS):
-        return rows
-    labels = [k for k in label_keys(rows) if k not in REPLICATE_LABELS]
-    groups: dict[tuple, list[dict]] = {}
-    for r in rows:
-        groups.setdefault(tuple(r[k] for k in labels), []).append(r)
-    out = []
-    for key, members in groups.items():
-        errs = [m["tracking_error_mm"] for m in members if m.get("tracking_error_mm")]
-        means = np.array([e["mean"] for e in errs])
-        pooled = None if not errs else {
-            "mean": float(means.mean()), "std": float(means.std(ddof=1)) if len(means) > 1 else 0.0,
-            "max": float(max(e["max"] for e in errs)), "min_mean": float(means.min()),
-            "max_mean": float(means.max()), "n": len(errs)}
-        status = "ok" if all(m["status"] == "ok" for m in members) and len(errs) == len(members) else "failed"
-        out.append({**dict(zip(labels, key)), "tracking_error_mm": pooled, "status": status,
-                    "seeds": [m[k] for m in members for k in REPLICATE_LABELS if k in m]})
-    return out
-
-
-def pooled_table(rows: list[dict]) -> str:
-    """Markdown table of :func:`pool_replicates`: per combination, the mean over the seeds, the spread."""
-    labels = [k for k in label_keys(rows) if k != "seeds"]
-    lines = ["| " + " | ".join([*labels, "seeds", "mean error [mm]", "spread over seeds (std) [mm]",
-                                "min / max of the seeds' means [mm]", "max [mm]", "status"]) + " |",
-             "|" + "---|" * (len(labels) + 6)]
-    for r in rows:
-        e = r.get("tracking_error_mm")
-        lines.append("| " + " | ".join([*(str(r[k]) for k in labels), str(len(r.get("seeds", []))),
-                                         _f(e, "mean"), _f(e, "std"),
-                                         f"{_f(e, 'min_mean')} / {_f(e, 'max_mean')}", _f(e, "max"),
-                                         r["status"]]) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def monotonic_within_spread(rows: list[dict], axis: str, k: float = 2.0) -> list[dict]:
-    """Per group of pooled rows along ``axis``: whether the mean error never falls, from one value to
-    the next, by more than ``k`` times the two points' combined spread (a drop inside the seeds'
-    scatter is noise, a larger one a real non-monotonic curve). Lists the offending steps."""
-    out = []
-    others, groups = _groups(rows, axis)
-    for key, members in groups.items():
-        drops = []
-        for a, b in zip(members, members[1:]):
-            ea, eb = a.get("tracking_error_mm"), b.get("tracking_error_mm")
-            if not ea or not eb:
-                continue
-            allowed = k * float(np.hypot(ea.get("std", 0.0), eb.get("std", 0.0)))
-            if ea["mean"] - eb["mean"] > allowed:
-                drops.append([a[axis], b[axis], round(ea["mean"], 2), round(eb["mean"], 2)])
-        out.append({**dict(zip(others, key)), "axis": axis, "monotonic": not drops, "drops": drops})
-    return out
-
-
-def largest_below(rows: list[dict], threshold_mm: float) -> list[dict]:
-    """Per group of the other labels, the largest value of each numeric axis whose mean
-    tracking error stays below ``threshold_mm`` (and every smaller value's too); None if none does.
-    Runs repeated over seeds are pooled first (:func:`pool_replicates`): the mean over the seeds decides."""
-    rows = pool_replicates(rows)
-    out = []
-    for axis in numeric_axes(rows):
-        others, groups = _groups(rows, axis)
-        for key, members in groups.items():
-            best = None
-            for r in members:
-                e = r.get("tracking_error_mm")
-                if not e or r["status"] != "ok" or e["mean"] >= threshold_mm:
-                    break
-                best = r[axis]
-            out.append({**dict(zip(others, key)), "axis": axis, "largest_below": best,
-                        "threshold_mm": threshold_mm})
-    return out
-
-
-UNIT_SUFFIXES = {"_s": "s", "_ms": "ms", "_mm": "mm", "_m": "m", "_hz": "Hz", "_px": "px", "_deg": "deg"}
-STYLES = [("o", "-"), ("s", "--"), ("^", "-."), ("D", ":"), ("v", "-"), ("P", "--"), ("X", "-.")]
-
-
-def axis_label(name: str) -> str:
-    """A sweep axis as an axis label with its unit: ``interval_s`` -> ``interval [s]``."""
-    for suffix, unit in UNIT_SUFFIXES.items():
-        if name.lower().endswith(suffix):
-            return f"{name[: -len(suffix)].replace('_', ' ')} [{unit}]"
-    return name.replace("_", " ")
-
-
-def sweep_plot(rows: list[dict], out_dir: Path, threshold_mm: float | None = None, title: str = "") -> list[Path]:
-    """One PNG per numeric axis: mean tracking error against it, a line per group of other labels.
-
-    Lines differ in marker and dash and are drawn from the largest marker down, so coinciding lines stay visible.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    files = []
-    rows = pool_replicates(rows)
-    if not any(r.get("tracking_error_mm") for r in rows):  # nothing to plot (a system without a path)
-        return files
-    for axis in numeric_axes(rows):
-        others, groups = _groups(rows, axis)
-        fig, ax = plt.subplots(figsize=(7, 4.5))
-        for i, (key, members) in enumerate(groups.items()):
-            x = [r[axis] for r in members]
-            y = [(r.get("tracking_error_mm") or {}).get("mean", np.nan) for r in members]
-            marker, dash = STYLES[i % len(STYLES)]
-            if any("seeds" in r for r in members):  # the seeds' spread as error bars
-                ax.errorbar(x, y, yerr=[(r.get("tracking_error_mm") or {}).get("std", 0.0) for r in members],
-                            fmt="none", capsize=3, lw=0.8, color=f"C{i}")
-            ax.plot(x, y, color=f"C{i}", marker=marker, ls=dash, ms=max(9 - 1.5 * i, 3), mfc="none" if i % 2 else None,
-                    label=", ".join(f"{k}={v}" for k, v in zip(others, key)) or "run")
-        if threshold_mm:
-            ax.axhline(threshold_mm, color="k", ls="--", lw=1, label=f"{threshold_mm:g} mm")
-        ax.set_xlabel(axis_label(axis))
-        ax.set_ylabel("mean tracking error [mm]")
-        ax.set_title(f"{title + ': ' if title else ''}mean tracking error against {axis_label(axis)}", fontsize=10)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        path = out_dir / f"sweep_{axis}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        files.append(path)
-    return files

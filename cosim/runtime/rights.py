@@ -16,8 +16,8 @@ certificate name) may
 * the scheduler's host alone publishes ticks and commands and declares the
   scheduler's token; it subscribes to every reply and watches the nodes' tokens.
 
-A placed component's identity has that one component: a holder of the camera's
-certificate can publish the camera's outputs and replies and nothing else, even
+A placed component's identity has that one component: a holder of a sensor's
+certificate can publish that sensor's outputs and replies and nothing else, even
 when the actuator's driver runs on the same host; a put it makes on another key is
 dropped by every process it reaches (and logged there, see
 :mod:`cosim.runtime.security_log`). A host's own certificate carries no component

@@ -5,7 +5,7 @@ appends its events to ``security.jsonl`` in the run's output folder (a node on
 another machine: in the run folder there), one JSON object a line::
 
     {"time": "2026-11-25T20:41:07.114Z", "process": "node actuator", "key": "cosim/1f2e/controller/outputs",
-     "reason": "refused by access control: camera@lab may not Put (ingress) here", "from": "camera@lab"}
+     "reason": "refused by access control: sensor@lab may not Put (ingress) here", "from": "sensor@lab"}
 
 Two kinds of events:
 
@@ -42,7 +42,7 @@ FILE_NAME = "security.jsonl"
 MAX_LINES = 1000
 #: zenoh's access-control log: ``<zid> on <subject> is [un]authorized to <what> on <key>`` when it decides,
 #: ``Using cached result: <zid> is [un]authorized to <what> on <key>`` when it reuses a decision; the
-#: subject names the peer's certificate: ``...+CertCommonName(camera@lab)+...``
+#: subject names the peer's certificate: ``...+CertCommonName(sensor@lab)+...``
 _DECISION = re.compile(r"(?:Using cached result: )?(?P<zid>[0-9a-f]+)(?: on (?P<subject>\S+))? is "
                        r"(?P<un>un)?authorized to (?P<what>.+?) on (?P<key>\S+)\s*$")
 _NAME = re.compile(r"CertCommonName\(([^)]*)\)")

@@ -31,16 +31,15 @@ from typing import Any, Iterable, Sequence
 
 from cosim.contract.errors import UserError
 from cosim.contract.plugins import lookup
-from cosim.record.summary import (
-    largest_below,
-    metric_keys,
-    monotonic_within_spread,
-    numeric_axes,
-    other_figures,
-    pool_replicates,
+from cosim.record.summary import TRACKING, metric_keys, other_figures, sweep_table
+from cosim.record.sweep_report import (
+    figure_label,
+    figure_missing,
+    largest_below_lines,
     pooled_table,
+    report,
+    report_figure,
     sweep_plot,
-    sweep_table,
 )
 from cosim.runtime.fingerprint import host_name
 from cosim.runtime.request import RunRequest
@@ -230,29 +229,33 @@ class SweepRecord:
         return row
 
     def finish(self, stopped: bool, progress: bool) -> dict[str, Any]:
+        """The sweep's summary once its runs are done (or stopped): the rows, the table, and what
+        the scenario's ``report`` asks of one figure (:mod:`cosim.record.sweep_report`), written to
+        ``DIR/summary.json`` and ``DIR/summary.md``; the table printed when ``progress``."""
         rows = self.ordered()
         summary: dict[str, Any] = {"scenario": self.scenario.name, "sweep": rows}
         if stopped:
             summary["status"] = "interrupted"
         table = sweep_table(rows)
-        threshold = self.scenario.report.threshold_mm
-        pooled = pool_replicates(rows)
-        if pooled is not rows:
-            summary["pooled"] = pooled
-            summary["monotonic"] = [m for axis in numeric_axes(pooled) for m in monotonic_within_spread(pooled, axis)]
-            table += "\nPooled over the seeds:\n\n" + pooled_table(pooled)
-        if threshold:
-            summary["largest_below_threshold"] = largest_below(rows, threshold)
-        summary["plots"] = [p.name for p in sweep_plot(rows, self.out, threshold, self.scenario.name)]
+        spec = self.scenario.report
+        figure = report_figure(spec.figure, spec.part, rows, default=TRACKING)
+        missing = figure_missing(rows, figure) if spec.figure else None
+        if missing:
+            summary["report_error"] = missing
+            print(f"cosim: {missing}", file=sys.stderr)
+        summary.update(report(rows, figure, spec.threshold))
+        if "pooled" in summary:
+            table += "\nPooled over the seeds:\n\n" + pooled_table(summary["pooled"], figure)
+        summary["plots"] = [] if figure is None else \
+            [p.name for p in sweep_plot(rows, self.out, figure, spec.threshold, self.scenario.name)]
         write_json(self.out / "summary.json", summary)
         (self.out / "summary.md").write_text(table)
         if progress:
             print(table)
-            for item in summary.get("largest_below_threshold", []):
-                group = " ".join(f"{k}={v}" for k, v in item.items()
-                                 if k not in ("axis", "largest_below", "threshold_mm"))
-                print(f"largest {item['axis']} with mean tracking error below {threshold:g} mm: "
-                      f"{item['largest_below']} ({group})")
+            if figure is not None and spec.threshold is not None:
+                label = figure_label(rows, figure)
+                for line in largest_below_lines(summary["largest_below_threshold"], label, figure, spec.threshold):
+                    print(line)
         return summary
 
 

@@ -1,8 +1,8 @@
-"""Scenarios shipped inside installed packages, run by name (``cosim run racetrack``).
+"""Scenarios shipped inside installed packages, run by name (``cosim run NAME``).
 
 A domain ships its scenario files as package data and registers their folder through the
 hook ``cosim_register_scenarios`` with :func:`register_folder`: every ``*.yaml`` file under
-it is a scenario named by its path in the folder without the suffix (``racetrack``,
+it is a scenario named by its path in the folder without the suffix (``step_response``,
 ``lab/training``). ``cosim scenarios`` lists them with their ``description``; every
 command that takes a scenario file takes such a name too (:func:`resolve_scenario`).
 """

@@ -116,11 +116,33 @@ class RecordSpec(_Strict):
 
 
 class ReportSpec(_Strict):
-    """Extra figures for a sweep's summary."""
+    """What a sweep's summary says about one figure of its runs (:mod:`cosim.record.sweep_report`):
+    pooled over seeds, a plot per numeric axis and, with a threshold, the largest axis values below it."""
 
-    threshold_mm: float | None = Field(None, gt=0, description=(
-        "report, per group of the other labels, the largest value of each numeric sweep axis "
-        "whose mean tracking error stays below this"))
+    figure: str | None = Field(None, min_length=1, description=(
+        "the run figure the sweep reports on, a key of a run's summary.json (its unit the key's "
+        "suffix, e.g. _mm, _rad_s); default: the tracking error when the runs have a path"))
+    part: str | None = Field(None, min_length=1, description=(
+        "the part of a figure that has parts to read (e.g. rms of speed_error_rad_s); default: its mean"))
+    threshold: float | None = Field(None, description=(
+        "with figure: report, per group of the other labels, the largest value of each numeric "
+        "sweep axis at which the figure (its mean over the seeds) stays below this, in its unit"))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _renamed(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "threshold_mm" in data:
+            raise ValueError(
+                "threshold_mm is no longer read: name the figure and its threshold, e.g. "
+                f"report: {{figure: tracking_error_mm, threshold: {data['threshold_mm']}}}")
+        return data
+
+    @model_validator(mode="after")
+    def _figure_named(self):
+        if (self.threshold is not None or self.part is not None) and not self.figure:
+            raise ValueError("threshold and part need the figure they apply to: "
+                             "report: {figure: KEY, threshold: VALUE}")
+        return self
 
 
 #: A scenario's name: it names the run's folder (``runs/NAME``), so a plain name, no path.
@@ -376,7 +398,7 @@ def line_of(node: YamlDocument | yaml.Node | None, loc) -> int | None:
 def parse_override(item: str) -> tuple[str, Any]:
     """``KEY=VALUE`` (``--set``) as ``(dotted key, value)``, the value read as YAML."""
     if "=" not in item:
-        raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.camera.params.interval_s=0.1")
+        raise ScenarioError(f"--set {item!r}: expected key=value, e.g. components.NAME.params.PARAM=VALUE")
     key, raw = item.split("=", 1)
     try:
         value = yaml.load(raw, Loader=_Loader) if raw else None
@@ -406,12 +428,12 @@ TOP_LEVEL_AXES = ("seed", "profile", "duration_s")
 def sweep_overrides(scenario: Scenario) -> list[tuple[dict[str, Any], list[str]]]:
     """One ``(labels, overrides)`` per combination of the sweep axes (product order).
 
-    An axis named by a dotted path (``components.camera.params.interval_s``)
-    sets that field; its label is the last part (``interval_s``); so does an
+    An axis named by a dotted path (``components.controller.params.kp``)
+    sets that field; its label is the last part (``kp``); so does an
     axis named by a top-level field (``seed``, ``profile``: :data:`TOP_LEVEL_AXES`). An axis with
-    a plain name (``estimator``) lists mappings of dotted paths to values,
+    a plain name (``variant``) lists mappings of dotted paths to values,
     each with an optional ``label`` (default: the first value) and any other
-    plain keys as further labels (``model: physical``).
+    plain keys as further labels (``model: linear``).
     Overrides are ``key=value`` strings as ``--set`` takes them.
     """
     axes = list(scenario.sweep.items())

@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from cosim import api
-from cosim.record.summary import largest_below, monotonic_within_spread, pool_replicates
+from cosim.contract.figures import Figure
+from cosim.record.sweep_report import largest_below, monotonic_within_spread, pool_replicates
 from cosim.scenario.schema import ScenarioError, load_scenario, sweep_overrides
 from cosim_plugins.profiles import LAB
 from cosim_plugins.resources import SCENARIOS_DIR
@@ -52,6 +53,9 @@ def test_seed_and_profile_are_plain_sweep_axes():
     assert run.seed == 2 and run.profile == "lab" and run.components["camera"].params["latency_s"] > 0
 
 
+TRACKING = Figure("tracking_error_mm")
+
+
 def _row(interval, seed, mean):
     return {"interval_s": interval, "seed": seed, "tracking_error_mm": {"mean": mean, "std": 0.1, "max": mean * 3},
             "status": "ok"}
@@ -60,16 +64,17 @@ def _row(interval, seed, mean):
 def test_seeds_are_pooled_and_decide_the_largest_interval_and_monotonicity():
     rows = [_row(0.1, 1, 1.0), _row(0.1, 2, 1.2), _row(0.5, 1, 4.0), _row(0.5, 2, 4.2),
             _row(1.0, 1, 3.0), _row(1.0, 2, 3.2)]
-    pooled = pool_replicates(rows)
+    pooled = pool_replicates(rows, TRACKING)
     assert [r["interval_s"] for r in pooled] == [0.1, 0.5, 1.0]
     assert pooled[1]["tracking_error_mm"]["mean"] == pytest.approx(4.1)
     assert pooled[1]["tracking_error_mm"]["std"] == pytest.approx(0.1414, abs=1e-3)
-    assert largest_below(rows, 4.6) == [{"axis": "interval_s", "largest_below": 1.0, "threshold_mm": 4.6}]
-    assert largest_below(rows, 4.0)[0]["largest_below"] == 0.1
-    (mono,) = monotonic_within_spread(pooled, "interval_s")
+    assert largest_below(rows, TRACKING, 4.6) == [{"axis": "interval_s", "largest_below": 1.0,
+                                                   "figure": "tracking_error_mm", "threshold": 4.6}]
+    assert largest_below(rows, TRACKING, 4.0)[0]["largest_below"] == 0.1
+    (mono,) = monotonic_within_spread(pooled, "interval_s", TRACKING)
     assert not mono["monotonic"] and mono["drops"] == [[0.5, 1.0, 4.1, 3.1]]
     wide = [*rows[:4], _row(1.0, 1, 3.0), _row(1.0, 2, 6.0)]  # the drop lies within the seeds' spread
-    assert monotonic_within_spread(pool_replicates(wide), "interval_s")[0]["monotonic"]
+    assert monotonic_within_spread(pool_replicates(wide, TRACKING), "interval_s", TRACKING)[0]["monotonic"]
 
 
 # ------------------------------------------------------------ the profile's own dataset and models

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 from figure_checks import assert_labelled
 
-from cosim.record.summary import largest_below, sweep_plot, sweep_table
+from cosim.contract.figures import Figure
+from cosim.record.summary import sweep_table
+from cosim.record.sweep_report import largest_below, sweep_plot
 from cosim_plugins.figures import detection_error_m
 
 
@@ -14,12 +16,13 @@ def row(interval, est, mean, status="ok"):
             "tracking_error_mm": {"mean": mean, "std": 1.0, "max": 2 * mean}}
 
 
+TRACKING = Figure("tracking_error_mm")
 ROWS = [row(0.02, "none", 2.0), row(0.1, "none", 4.0), row(0.2, "none", 9.0), row(0.4, "none", 3.0),
         row(0.02, "kf", 1.5), row(0.1, "kf", 2.0), row(0.2, "kf", 3.0), row(0.4, "kf", 4.0, "failed")]
 
 
 def test_largest_below_stops_at_the_first_value_over_the_threshold():
-    got = {r["estimator"]: r["largest_below"] for r in largest_below(ROWS, 4.6)}
+    got = {r["estimator"]: r["largest_below"] for r in largest_below(ROWS, TRACKING, 4.6)}
     # 0.4 s without an estimator is under 4.6 mm again, but 0.2 s was not: the answer is 0.1 s.
     # A failed run never counts.
     assert got == {"none": 0.1, "kf": 0.2}
@@ -29,7 +32,7 @@ def test_table_and_plot(tmp_path, saved_figures):
     table = sweep_table(ROWS)
     assert table.splitlines()[0].startswith("| interval_s | estimator | tracking error [mm]")
     assert "| 0.1 | kf | 2.00 ± 1.00 | 4.00 |" in table
-    files = sweep_plot(ROWS, tmp_path, 4.6, "fig6")
+    files = sweep_plot(ROWS, tmp_path, TRACKING, 4.6, "fig6")
     assert [f.name for f in files] == ["sweep_interval_s.png"] and files[0].stat().st_size > 10_000
     assert_labelled(saved_figures)
     assert saved_figures["sweep_interval_s.png"]["axes"] == [("interval [s]", "mean tracking error [mm]")]
