@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from cosim.api import Moments, Quantiles
-from cosim.contract.figures import FigureSet
+from cosim.contract.figures import FigureSet, error_stats
 
 #: how far back [s of simulated time] a measurement's capture time may lie behind its row
 HISTORY_S = 10.0
@@ -44,15 +44,6 @@ def detection_error_m(measured_m: np.ndarray, truth_m: np.ndarray, t_s: np.ndarr
     at = t_s if capture_time_s is None else np.where(np.isfinite(capture_time_s), capture_time_s, t_s)
     truth_at = np.stack([np.interp(at, t_s, truth_m[:, i]) for i in range(3)], axis=1)
     return np.linalg.norm(measured_m - truth_at, axis=1)
-
-
-def _stats(values_mm: np.ndarray | None) -> dict | None:
-    if values_mm is None:
-        return None
-    v = values_mm[np.isfinite(values_mm)]
-    if not len(v):
-        return None
-    return {"mean": float(np.mean(v)), "std": float(np.std(v)), "max": float(np.max(v))}
 
 
 def _quantiles(values: np.ndarray) -> dict | None:
@@ -91,7 +82,7 @@ class SwimmerFigures(FigureSet):
         out: dict[str, Any] = dict.fromkeys(self.keys)
         truth, estimate = get("truth"), get("estimate")
         if truth is not None and estimate is not None:
-            out["estimation_error_mm"] = _stats(np.linalg.norm(estimate - truth, axis=1) * 1e3)
+            out["estimation_error_mm"] = error_stats(np.linalg.norm(estimate - truth, axis=1) * 1e3)
         innov = get("prediction_error")
         if innov is not None:
             rows = innov[np.all(np.isfinite(innov), axis=1)] * 1e3

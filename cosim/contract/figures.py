@@ -24,6 +24,16 @@ import numpy as np
 RoleGetter = Callable[[str], "np.ndarray | None"]
 
 
+def error_stats(values_mm: np.ndarray | None) -> dict | None:
+    """{mean, std, max} of the finite values of an error trace (n,) [mm]; None if there is none."""
+    if values_mm is None:
+        return None
+    v = values_mm[np.isfinite(values_mm)]
+    if not len(v):
+        return None
+    return {"mean": float(np.mean(v)), "std": float(np.std(v)), "max": float(np.max(v))}
+
+
 class FigureAccumulator(Protocol):
     """A run's figures of one :class:`FigureSet`, computed as the run goes."""
 

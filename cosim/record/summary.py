@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from cosim.contract.figures import error_stats
 from cosim.contract.plugins import figure_sets
 from cosim.scenario.paths import distance_to_path
 
@@ -59,15 +60,6 @@ def other_figures(summary: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in summary.items() if k not in skip and v is not None and is_figure(v)}
 
 
-def _stats(values_mm: np.ndarray | None) -> dict | None:
-    if values_mm is None:
-        return None
-    v = values_mm[np.isfinite(values_mm)]
-    if not len(v):
-        return None
-    return {"mean": float(np.mean(v)), "std": float(np.std(v)), "max": float(np.max(v))}
-
-
 def trace_figures(trace: dict[str, np.ndarray], roles: dict[str, str | None], path=None) -> dict[str, Any]:
     """The run's figures computed exactly from a whole trace (:func:`~cosim.record.trace_files.load_trace`),
     ``roles`` as ``scenario.record.ports()``, ``path`` the run's path: the reference the figures
@@ -78,7 +70,7 @@ def trace_figures(trace: dict[str, np.ndarray], roles: dict[str, str | None], pa
     out: dict[str, Any] = dict.fromkeys(metric_keys())
     truth, t_s = get("truth"), trace["t_s"]
     if path is not None and truth is not None and truth.shape[1:] == (3,):
-        out[TRACKING] = _stats(distance_to_path(path, truth, t_s) * 1e3)
+        out[TRACKING] = error_stats(distance_to_path(path, truth, t_s) * 1e3)
     for figure_set in figure_sets():
         out.update(figure_set.exact(get, t_s))
     return out
