@@ -98,6 +98,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import blind_sim  # noqa: E402  (the independent simulator beside this file)
+import blind_visible  # noqa: E402  (each hidden effect's visibility, measured with that simulator)
 
 DETECTABLE = 0.10  # a true-form reduction below this: the effect is invisible in these logs
 MIN_T = 3.0  # the verdict's paired t below which two effects are not told apart
@@ -161,17 +162,24 @@ def _true_refit(logs, source: str, name: str, path: Path) -> tuple[float, dict]:
     return true["added"]["reduction"][key], {k: v["value"] for k, v in true["added"]["params"].items()}
 
 
-def run_case(case: blind_sim.Case, out: Path) -> dict:
+def run_case(case: blind_sim.Case, out: Path, multi_draw: str = "visible") -> dict:
     """Simulate, diagnose blind, refit with the true form(s), and for a look-alike case declared as a group run
-    the designed experiment and diagnose again; one JSON-able record."""
+    the designed experiment and diagnose again; one JSON-able record. A multi case is first redrawn until
+    both its effects are visible (``multi_draw`` "visible": :func:`blind_visible.visible_case`) unless
+    ``multi_draw`` is "any" (the draw as it comes)."""
     from cosim.contract import plugins
 
     folder = case_folder(out, case)
+    drawn_seed, draw = case.seed, None
+    if case.group == "multi" and multi_draw == "visible":
+        case, draw = blind_visible.visible_case(case)
     logs = blind_sim.simulate(case, folder / "logs")
     t0 = time.perf_counter()
     fields, d = _diagnose(logs)
-    record = {"index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect, "law": case.law,
+    record = {"index": case.index, "seed": drawn_seed, "group": case.group, "effect": case.effect, "law": case.law,
               "truth": case.truth, "regime": case.regime, **fields, "true_reduction": None}
+    if draw is not None:
+        record["draw"] = {**draw, "case_seed": case.seed}
     if case.group == "multi":
         record.update(effects=case.effects, laws=case.laws, truths=case.truths,
                       hidden_library=[e for e in case.effects if e in blind_sim.LIBRARY],
@@ -218,9 +226,9 @@ def _lookalike_round(case: blind_sim.Case, folder: Path, logs: list, fields: dic
 
 
 def _worker(args) -> dict:
-    case, out = args
+    case, out, multi_draw = args
     try:
-        return run_case(case, Path(out))
+        return run_case(case, Path(out), multi_draw)
     except Exception as exc:  # one failed case is one failed row, never the whole bench
         return {"index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect,
                 "error": f"{type(exc).__name__}: {exc}"}
@@ -265,6 +273,9 @@ def summarise(records: list[dict]) -> dict:
     def visible_named(r):  # every hidden library effect that its true form alone shows (>= 10 %) is named
         true = r.get("true_reductions") or {}
         return {e for e in r["hidden_library"] if (true.get(e) or 0.0) >= DETECTABLE} <= set(r["named_effects"])
+
+    def multi_visible(r):  # every hidden effect visible by the simulator's measure (drawn so, or found so)
+        return bool((r.get("draw") or {}).get("all_visible"))
 
     def multi_detectable(r):  # every hidden library effect's true form alone lowers the error by >= 10 %
         true = r.get("true_reductions") or {}
@@ -322,7 +333,11 @@ def summarise(records: list[dict]) -> dict:
                   "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind,
                   "detectable": sum(1 for r in multi if multi_detectable(r)),
                   "all_named_detectable": frac([r for r in multi if multi_detectable(r)], all_named),
-                  "visible_named": frac(multi, visible_named)},
+                  "visible_named": frac(multi, visible_named),
+                  "drawn_visible": sum(1 for r in multi if multi_visible(r)),
+                  "all_named_drawn_visible": frac([r for r in multi if multi_visible(r)], all_named),
+                  "declared_group": sum(1 for r in multi if any(set(g) & set(r["hidden_library"])
+                                                                for g in r["lookalikes"]))},
         "lookalike": {"cases": len(look), "wrong_named": sum(1 for r in look if wrong_named(r)),
                       "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
                       "declared": sum(1 for r in look if r["declared"]),
@@ -374,6 +389,10 @@ def main(argv=None) -> int:
                     + " (default library,none,outside)")
     ap.add_argument("--multi-cases", type=int, default=12, help="cases of the multi group (default 12)")
     ap.add_argument("--lookalike-cases", type=int, default=12, help="cases of the lookalike group (default 12)")
+    ap.add_argument("--multi-draw", choices=("visible", "any"), default="visible",
+                    help="multi cases: redrawn until each hidden effect is visible by the simulator's own measure "
+                         "(visible, the default; benchmarks/blind_visible.py), or taken as drawn (any: the draw "
+                         "of the runs before 26 Nov)")
     ap.add_argument("--drift-cases", type=int, default=12,
                     help="cases of the drift group, one in three a steady control (default 12)")
     ap.add_argument("--only", choices=BASE_GROUPS,
@@ -430,7 +449,7 @@ def main(argv=None) -> int:
         print(f"resuming: {len(records)} finished cases kept, {len(todo)} to go", file=sys.stderr, flush=True)
     total = len(records) + len(todo)
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(_worker, (c, str(out))) for c in todo]
+        futures = [pool.submit(_worker, (c, str(out), args.multi_draw)) for c in todo]
         for done, fut in enumerate(as_completed(futures), len(records) + 1):
             rec = fut.result()
             records.append(rec)
@@ -470,6 +489,9 @@ def _write_case(ap, args, out: Path) -> int:
     try:
         if group == "multi":
             case = blind_sim.draw_multi_case(args.seed, effect.split("+") if effect else None)
+            if args.multi_draw == "visible":
+                case, draw = blind_visible.visible_case(case)
+                print(f"drawn visible: {json.dumps(draw)}")
         elif group == "lookalike":
             case = blind_sim.draw_lookalike_case(args.seed, effect or None)
         elif group == "drift":

@@ -96,3 +96,17 @@ def test_the_design_loop_keeps_a_model_on_its_circle():
     assert np.all(np.abs(radius - 25.0) < 6.0) and np.all(np.abs(seen[0, 200:, 2]) < 6.0)
     angle = np.unwrap(np.arctan2(seen[0, :, 1], seen[0, :, 0]))
     assert angle[-1] - angle[0] > np.pi  # it travels along the circle
+
+
+def test_an_experiment_lasts_long_enough_for_its_separation_to_show():
+    """A separation at the target needs the base length; half of it four times as many windows; the length is
+    capped, and without a floor stays the base."""
+    from cosim_plugins.diagnose.experiment import DURATION_S, MAX_DURATION_S, SEPARATION_TARGET, sized_duration
+
+    floor = 0.2
+    assert sized_duration(SEPARATION_TARGET * floor * 3.0, floor) == DURATION_S
+    assert sized_duration(SEPARATION_TARGET * floor, floor) == pytest.approx(DURATION_S)
+    assert sized_duration(SEPARATION_TARGET * floor / 2.0, floor) == pytest.approx(4.0 * DURATION_S)
+    assert sized_duration(SEPARATION_TARGET * floor / 100.0, floor) == MAX_DURATION_S
+    assert sized_duration(0.0, floor) == MAX_DURATION_S
+    assert sized_duration(0.01, None) == DURATION_S
