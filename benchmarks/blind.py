@@ -33,12 +33,20 @@ it finishes; at the end one JSON object is printed:
   hidden); ``all_named_detectable`` the same over the ``detectable`` cases
   (each hidden library effect's true form alone lowers the error by >= 10 %);
   ``visible_named``: fraction naming every hidden library effect that its true
-  form alone shows (>= 10 %);
+  form alone shows (>= 10 %); ``drawn_visible`` (cases whose every hidden
+  effect is visible by the simulator's own measure, ``benchmarks/blind_visible.py``:
+  with ``--multi-draw visible``, the default, each case is redrawn until it
+  is, up to 12 draws) and ``all_named_drawn_visible`` over them;
+  ``declared_group`` (cases declaring a look-alike group that holds a hidden
+  library effect);
   ``by_kind``: the same for two library effects (``library``) and a
   library and an outside one (``outside``). Each hidden effect with a true
   form is refitted alone: ``true_reductions`` in the records;
 * ``lookalike``: ``cases``; ``wrong_named`` (cases naming an effect not
   hidden while the hidden one is in no declared look-alike group);
+  ``visible`` (cases whose hidden effect the simulator's own measure shows,
+  ``benchmarks/blind_visible.py``; the draw is not redrawn) and
+  ``resolved_visible`` (``resolved`` over them);
   ``resolved`` (fraction named right at once, or declared in a look-alike
   group and named right once the designed experiment's log is added: the
   bench simulates the case's plant under the experiment's
@@ -193,6 +201,7 @@ def run_case(case: blind_sim.Case, out: Path, multi_draw: str = "visible") -> di
                                                                       folder / "true_form.py")
     if case.group == "lookalike":
         record.update(_lookalike_round(case, folder, logs, fields, d))
+        record["visibility"] = blind_visible.visibility(case)  # drawn as it comes; counted over the visible too
     plugins.reset()
     record["seconds"] = round(time.perf_counter() - t0, 1)
     return record
@@ -287,6 +296,9 @@ def summarise(records: list[dict]) -> dict:
     def wrong_named(r):  # an effect named that is not hidden, the hidden one in no declared group
         return bool(set(r["named_effects"]) - {r["effect"]}) and not r["declared"]
 
+    def look_visible(r):  # the hidden effect visible by the simulator's measure
+        return bool(((r.get("visibility") or {}).get(r["effect"]) or {}).get("visible"))
+
     def resolved(r):
         return r["named_at_once"] or (r["declared"] and bool((r.get("after") or {}).get("named_right")))
 
@@ -340,6 +352,8 @@ def summarise(records: list[dict]) -> dict:
                                                                 for g in r["lookalikes"]))},
         "lookalike": {"cases": len(look), "wrong_named": sum(1 for r in look if wrong_named(r)),
                       "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
+                      "visible": sum(1 for r in look if look_visible(r)),
+                      "resolved_visible": frac([r for r in look if look_visible(r)], resolved),
                       "declared": sum(1 for r in look if r["declared"]),
                       "experiments": sum(1 for r in look if (r.get("experiment") or {}).get("status") == "simulated")},
         "drift": {"cases": len(drift), "flagged": frac(drift, lambda r: bool(r["drift_flagged"])),

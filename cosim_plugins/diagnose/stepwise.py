@@ -163,14 +163,18 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
 
     ``screen``: every effect first gets a quick fit (``fitter.with_effects(..., quick=True)``); the full fit
     goes to the :data:`SCREEN_KEEP` best whose quick drop reaches :data:`SCREEN_MIN`, the others keep their
-    quick entry (marked ``"screened": True``). A quick fit stops sooner, so it tends to understate a drop:
-    :data:`SCREEN_MIN` is well below the verdict's own threshold.
+    quick entry (marked ``"screened": True``). A quick fit stops sooner and skips the open-loop polish that
+    ``before`` had, so its drop is measured against ``before`` refitted the same quick way, with no effect
+    added (``fitter.with_effects(before, [], quick=True)``): against the polished ``before`` every quick fit
+    would look worse, the polish's gain counted as the candidate's loss. :data:`SCREEN_MIN` is well below the
+    verdict's own threshold.
     """
     entries, fits = {}, {}
     todo = list(effects)
     if screen and len(effects) > SCREEN_KEEP:
+        same_way, _ = fitter.with_effects(before, [], quick=True)  # the quick fits' reference
         for effect, (fit, identifiable) in zip(effects, fitter.with_each(before, effects, quick=True)):
-            entries[effect.name] = {**fitter.entry(effect, fit, identifiable, before), "screened": True}
+            entries[effect.name] = {**fitter.entry(effect, fit, identifiable, same_way), "screened": True}
             fits[effect.name] = fit
         hopeful = sorted((e for e in entries.values() if e["identifiable"] and e["reduction"] >= SCREEN_MIN),
                          key=lambda e: -e["reduction"])[:SCREEN_KEEP]
