@@ -154,3 +154,24 @@ def test_a_quick_screen_is_measured_against_the_model_before_refitted_the_same_q
     lag = next(e for e in entries if e["effect"] == "lag")
     assert entries[0] is lag and not lag.get("screened") and lag["reduction"] == pytest.approx(0.2)
     assert all(e.get("screened") for e in entries if e["effect"] != "lag")
+
+
+def test_the_look_alikes_of_a_candidate_about_to_be_named_get_their_full_fit():
+    """A latency fully fitted leads a round in which the lag had only its quick fit: the lag gets the full fit
+    before the group test, and leads once it does better; a flow's quick entry stays as it was."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import _full_family
+
+    fitter = _Quick({"sensor_latency": 0.2, "actuation_lag": 0.25, "background_flow": 0.0})
+    before = fitter._fit(1.0)
+    quick = {"reduction": -0.06, "t_stat": -1.0, "identifiable": True, "screened": True, "rollout_mm": {"1.0": 1.06}}
+    entries = [{"effect": "sensor_latency", "reduction": 0.2, "t_stat": 5.0, "identifiable": True,
+                "rollout_mm": {"1.0": 0.8}},
+               {"effect": "background_flow", **quick}, {"effect": "actuation_lag", **quick}]
+    by_name = {n: SimpleNamespace(name=n) for n in fitter.gain}
+    fits = {}
+    entries, best = _full_family(fitter, before, entries, fits, entries[0], by_name, "1.0", lambda m: None)
+    assert best["effect"] == "actuation_lag" and best["reduction"] == pytest.approx(0.25) and "actuation_lag" in fits
+    assert [e["effect"] for e in entries] == ["actuation_lag", "sensor_latency", "background_flow"]
+    assert entries[-1].get("screened")
