@@ -33,12 +33,20 @@ it finishes; at the end one JSON object is printed:
   hidden); ``all_named_detectable`` the same over the ``detectable`` cases
   (each hidden library effect's true form alone lowers the error by >= 10 %);
   ``visible_named``: fraction naming every hidden library effect that its true
-  form alone shows (>= 10 %);
+  form alone shows (>= 10 %); ``drawn_visible`` (cases whose every hidden
+  effect is visible by the simulator's own measure, ``benchmarks/blind_visible.py``:
+  with ``--multi-draw visible``, the default, each case is redrawn until it
+  is, up to 12 draws) and ``all_named_drawn_visible`` over them;
+  ``declared_group`` (cases declaring a look-alike group that holds a hidden
+  library effect);
   ``by_kind``: the same for two library effects (``library``) and a
   library and an outside one (``outside``). Each hidden effect with a true
   form is refitted alone: ``true_reductions`` in the records;
 * ``lookalike``: ``cases``; ``wrong_named`` (cases naming an effect not
   hidden while the hidden one is in no declared look-alike group);
+  ``visible`` (cases whose hidden effect the simulator's own measure shows,
+  ``benchmarks/blind_visible.py``; the draw is not redrawn) and
+  ``resolved_visible`` (``resolved`` over them);
   ``resolved`` (fraction named right at once, or declared in a look-alike
   group and named right once the designed experiment's log is added: the
   bench simulates the case's plant under the experiment's
@@ -98,6 +106,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import blind_sim  # noqa: E402  (the independent simulator beside this file)
+import blind_visible  # noqa: E402  (each hidden effect's visibility, measured with that simulator)
 
 DETECTABLE = 0.10  # a true-form reduction below this: the effect is invisible in these logs
 MIN_T = 3.0  # the verdict's paired t below which two effects are not told apart
@@ -161,17 +170,24 @@ def _true_refit(logs, source: str, name: str, path: Path) -> tuple[float, dict]:
     return true["added"]["reduction"][key], {k: v["value"] for k, v in true["added"]["params"].items()}
 
 
-def run_case(case: blind_sim.Case, out: Path) -> dict:
+def run_case(case: blind_sim.Case, out: Path, multi_draw: str = "visible") -> dict:
     """Simulate, diagnose blind, refit with the true form(s), and for a look-alike case declared as a group run
-    the designed experiment and diagnose again; one JSON-able record."""
+    the designed experiment and diagnose again; one JSON-able record. A multi case is first redrawn until
+    both its effects are visible (``multi_draw`` "visible": :func:`blind_visible.visible_case`) unless
+    ``multi_draw`` is "any" (the draw as it comes)."""
     from cosim.contract import plugins
 
     folder = case_folder(out, case)
+    drawn_seed, draw = case.seed, None
+    if case.group == "multi" and multi_draw == "visible":
+        case, draw = blind_visible.visible_case(case)
     logs = blind_sim.simulate(case, folder / "logs")
     t0 = time.perf_counter()
     fields, d = _diagnose(logs)
-    record = {"index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect, "law": case.law,
+    record = {"index": case.index, "seed": drawn_seed, "group": case.group, "effect": case.effect, "law": case.law,
               "truth": case.truth, "regime": case.regime, **fields, "true_reduction": None}
+    if draw is not None:
+        record["draw"] = {**draw, "case_seed": case.seed}
     if case.group == "multi":
         record.update(effects=case.effects, laws=case.laws, truths=case.truths,
                       hidden_library=[e for e in case.effects if e in blind_sim.LIBRARY],
@@ -185,6 +201,7 @@ def run_case(case: blind_sim.Case, out: Path) -> dict:
                                                                       folder / "true_form.py")
     if case.group == "lookalike":
         record.update(_lookalike_round(case, folder, logs, fields, d))
+        record["visibility"] = blind_visible.visibility(case)  # drawn as it comes; counted over the visible too
     plugins.reset()
     record["seconds"] = round(time.perf_counter() - t0, 1)
     return record
@@ -218,9 +235,9 @@ def _lookalike_round(case: blind_sim.Case, folder: Path, logs: list, fields: dic
 
 
 def _worker(args) -> dict:
-    case, out = args
+    case, out, multi_draw = args
     try:
-        return run_case(case, Path(out))
+        return run_case(case, Path(out), multi_draw)
     except Exception as exc:  # one failed case is one failed row, never the whole bench
         return {"index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect,
                 "error": f"{type(exc).__name__}: {exc}"}
@@ -266,6 +283,9 @@ def summarise(records: list[dict]) -> dict:
         true = r.get("true_reductions") or {}
         return {e for e in r["hidden_library"] if (true.get(e) or 0.0) >= DETECTABLE} <= set(r["named_effects"])
 
+    def multi_visible(r):  # every hidden effect visible by the simulator's measure (drawn so, or found so)
+        return bool((r.get("draw") or {}).get("all_visible"))
+
     def multi_detectable(r):  # every hidden library effect's true form alone lowers the error by >= 10 %
         true = r.get("true_reductions") or {}
         return all((true.get(e) or 0.0) >= DETECTABLE for e in r["hidden_library"])
@@ -275,6 +295,9 @@ def summarise(records: list[dict]) -> dict:
 
     def wrong_named(r):  # an effect named that is not hidden, the hidden one in no declared group
         return bool(set(r["named_effects"]) - {r["effect"]}) and not r["declared"]
+
+    def look_visible(r):  # the hidden effect visible by the simulator's measure
+        return bool(((r.get("visibility") or {}).get(r["effect"]) or {}).get("visible"))
 
     def resolved(r):
         return r["named_at_once"] or (r["declared"] and bool((r.get("after") or {}).get("named_right")))
@@ -322,9 +345,15 @@ def summarise(records: list[dict]) -> dict:
                   "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind,
                   "detectable": sum(1 for r in multi if multi_detectable(r)),
                   "all_named_detectable": frac([r for r in multi if multi_detectable(r)], all_named),
-                  "visible_named": frac(multi, visible_named)},
+                  "visible_named": frac(multi, visible_named),
+                  "drawn_visible": sum(1 for r in multi if multi_visible(r)),
+                  "all_named_drawn_visible": frac([r for r in multi if multi_visible(r)], all_named),
+                  "declared_group": sum(1 for r in multi if any(set(g) & set(r["hidden_library"])
+                                                                for g in r["lookalikes"]))},
         "lookalike": {"cases": len(look), "wrong_named": sum(1 for r in look if wrong_named(r)),
                       "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
+                      "visible": sum(1 for r in look if look_visible(r)),
+                      "resolved_visible": frac([r for r in look if look_visible(r)], resolved),
                       "declared": sum(1 for r in look if r["declared"]),
                       "experiments": sum(1 for r in look if (r.get("experiment") or {}).get("status") == "simulated")},
         "drift": {"cases": len(drift), "flagged": frac(drift, lambda r: bool(r["drift_flagged"])),
@@ -374,6 +403,10 @@ def main(argv=None) -> int:
                     + " (default library,none,outside)")
     ap.add_argument("--multi-cases", type=int, default=12, help="cases of the multi group (default 12)")
     ap.add_argument("--lookalike-cases", type=int, default=12, help="cases of the lookalike group (default 12)")
+    ap.add_argument("--multi-draw", choices=("visible", "any"), default="visible",
+                    help="multi cases: redrawn until each hidden effect is visible by the simulator's own measure "
+                         "(visible, the default; benchmarks/blind_visible.py), or taken as drawn (any: the draw "
+                         "of the runs before 26 Nov)")
     ap.add_argument("--drift-cases", type=int, default=12,
                     help="cases of the drift group, one in three a steady control (default 12)")
     ap.add_argument("--only", choices=BASE_GROUPS,
@@ -430,7 +463,7 @@ def main(argv=None) -> int:
         print(f"resuming: {len(records)} finished cases kept, {len(todo)} to go", file=sys.stderr, flush=True)
     total = len(records) + len(todo)
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(_worker, (c, str(out))) for c in todo]
+        futures = [pool.submit(_worker, (c, str(out), args.multi_draw)) for c in todo]
         for done, fut in enumerate(as_completed(futures), len(records) + 1):
             rec = fut.result()
             records.append(rec)
@@ -470,6 +503,9 @@ def _write_case(ap, args, out: Path) -> int:
     try:
         if group == "multi":
             case = blind_sim.draw_multi_case(args.seed, effect.split("+") if effect else None)
+            if args.multi_draw == "visible":
+                case, draw = blind_visible.visible_case(case)
+                print(f"drawn visible: {json.dumps(draw)}")
         elif group == "lookalike":
             case = blind_sim.draw_lookalike_case(args.seed, effect or None)
         elif group == "drift":

@@ -905,7 +905,7 @@ def _schedule(rng, n: int, dt: float, band, hold) -> np.ndarray:
     return rng.uniform(band[0], band[1], count + 1)[np.searchsorted(edges, np.arange(n) * dt, side="right")]
 
 
-def run_case(case: Case) -> dict:
+def run_case(case: Case, states: bool = False) -> dict:
     """Simulate a case's logs together (deterministic from ``case.seed``); :func:`simulate` writes them.
 
     Returns (n = the longest log's rows, L logs): ``rows`` (L,), ``t_s`` (n,), ``omega_hz`` (n, L, 3) commands,
@@ -917,12 +917,16 @@ def run_case(case: Case) -> dict:
     rows = [int(round(d / dt)) for d in reg["log_durations_s"]]
     n_logs, n = len(rows), max(rows)
     freq = np.stack([_schedule(rng, n, dt, reg["band_hz"], reg["hold_s"]) for _ in range(n_logs)], axis=1)[..., None]
-    return _closed_loop(case, rng, freq, [path_points(d) for d in reg["paths"]], rows)
+    return _closed_loop(case, rng, freq, [path_points(d) for d in reg["paths"]], rows, states)
 
 
-def _closed_loop(case: Case, rng, freq: np.ndarray, paths: list, rows: list) -> dict:
+def _closed_loop(case: Case, rng, freq: np.ndarray, paths: list, rows: list, states: bool = False) -> dict:
     """Run the closed loop of :func:`run_case` on L logs: spin rate ``freq`` (n, L, 1) [Hz], ``paths`` [(N, 3) mm]
-    (L of them), ``rows`` (L,); the command noise and camera errors come from ``rng`` in this order."""
+    (L of them), ``rows`` (L,); the command noise and camera errors come from ``rng`` in this order.
+
+    ``states``: also return ``v_true_mm_s`` (n, L, 3), the true velocities at t_i, and ``effect_state`` [n]:
+    the plant's thrust-shaping state at t_i (a copy, or None; see :class:`_Plant`); no draw changes.
+    """
     reg, dt = case.regime, case.regime["dt_s"]
     n_logs, n = len(rows), max(rows)
     u_noise = rng.normal(0.0, reg["cmd_noise_hz"], (n, n_logs, 3))
@@ -952,9 +956,13 @@ def _closed_loop(case: Case, rng, freq: np.ndarray, paths: list, rows: list) -> 
     p, v = ext[:, back].copy(), np.zeros((n_logs, 3))
     last, idx, heading = p.copy(), np.zeros(n_logs, dtype=int), unit(ext[:, back + 1] - ext[:, back])
     omega, meas, true = (np.empty((n, n_logs, 3)) for _ in range(3))
+    vel, held_states = (np.empty((n, n_logs, 3)), []) if states else (None, None)
     clamps = 0
     for i in range(n):
         true[i] = seen = p
+        if states:
+            vel[i] = v
+            held_states.append(None if plant.state is None else np.array(plant.state))
         if lag is not None:  # the camera shows where the swimmer was `lag` substeps ago (at rest before t = 0)
             hist[i * m] = p
             x = i * m - lag
@@ -981,8 +989,11 @@ def _closed_loop(case: Case, rng, freq: np.ndarray, paths: list, rows: list) -> 
             clamps += int(over.any(axis=1).sum())
             p, v = np.clip(p, -CLAMP_MM, CLAMP_MM), np.where(over & (v * p > 0), 0.0, v)
     meas[lost] = np.nan
-    return {"rows": rows, "t_s": np.arange(n) * dt, "omega_hz": omega, "p_meas_mm": meas, "p_true_mm": true,
-            "paths": paths, "picard": float(np.mean(plant.passes)), "clamps": clamps}
+    out = {"rows": rows, "t_s": np.arange(n) * dt, "omega_hz": omega, "p_meas_mm": meas, "p_true_mm": true,
+           "paths": paths, "picard": float(np.mean(plant.passes)), "clamps": clamps}
+    if states:
+        out.update(v_true_mm_s=vel, effect_state=held_states)
+    return out
 
 
 def simulate(case: Case, out_dir) -> list[Path]:

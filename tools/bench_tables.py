@@ -348,7 +348,8 @@ def drift_table() -> str:
     return table(["figure", *[label for _, label in DRIFT_SEEDS], "target"], rows)
 
 
-SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10 (look-alikes, distance per log)"))
+SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10 (look-alikes, distance per log)"),
+                 ("blind_groups_s45", "seed 45 (multi drawn visible, given discovered, sized experiment)"))
 
 
 def several_effects_table() -> str:
@@ -370,12 +371,18 @@ def several_effects_table() -> str:
          ">= 0.8"],
         ["`multi.visible_named`: every hidden library effect that its true form alone shows (>= 10 %) named",
          *multi(lambda m: of(m["visible_named"], m["cases"])), ""],
+        ["`multi.all_named_drawn_visible`: the same over the cases whose both effects the simulator's own measure "
+         "shows (drawn so from seed 45 on)",
+         *multi(lambda m: of(m["all_named_drawn_visible"], m["drawn_visible"])
+                if m.get("drawn_visible") else "-"), ""],
         ["`multi.extra_named`: a library effect named that is not hidden",
          *multi(lambda m: str(m["extra_named"])), "<= 1"],
         ["`lookalike.wrong_named`: a wrong effect named without a group", *look(lambda lk: str(lk["wrong_named"])),
          "0"],
         ["`lookalike.resolved`: named right at once, or declared and named right after the experiment",
          *look(lambda lk: of(lk["resolved"], lk["cases"])), ">= 0.8"],
+        ["... over the cases whose hidden effect the simulator's own measure shows (from seed 45 on)",
+         *look(lambda lk: of(lk["resolved_visible"], lk["visible"]) if lk.get("visible") else "-"), ""],
         ["... named right at once", *look(lambda lk: of(lk["named_at_once"], lk["cases"])), ""],
         ["... declared as a group, the experiment flown", *look(after), ""],
         ["time per case (2 or 3 diagnoses, two cases at once, a busy machine)",

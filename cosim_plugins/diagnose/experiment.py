@@ -11,8 +11,12 @@ open-loop error at the reference horizon with the initial state solved on the
 lead-in, averaged over every horizon of the diagnosis (look-alikes end a
 second-long prediction at nearly the same point and differ on the way). The
 design keeps the excitation whose smallest such separation over the ordered
-pairs of members is largest, and compares it with the noise floor. Units:
-mm, mm/s, Hz, s.
+pairs of members is largest, and compares it with the noise floor. The
+candidates are compared over :data:`DURATION_S`; the chosen one then lasts
+long enough for its separation to show against the noise
+(:func:`sized_duration`: a separation of :data:`SEPARATION_TARGET` x the
+floor needs :data:`DURATION_S`, a smaller one more windows, up to
+:data:`MAX_DURATION_S`). Units: mm, mm/s, Hz, s.
 
 :class:`Experiment` writes ``experiment.yaml`` (a scenario: the path, PI
 control, the excitation as the ``diagnose.spin_schedule`` shaper) and
@@ -22,7 +26,7 @@ which any rig or simulator applies under its own path controller).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +36,11 @@ from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.timeline import Timeline
 from cosim_plugins.raw_log import Log
 
-DURATION_S = 40.0  # length of the designed experiment
+DURATION_S = 40.0  # length over which the candidate excitations are compared [s]
+MAX_DURATION_S = 300.0  # the longest experiment designed [s]
+# separation / noise floor a DURATION_S experiment needs to tell members apart: on the blind bench (seed 8), look-alike
+# pairs separated by 1.06x and 1.16x were told apart by a 40 s experiment's log, one separated by 0.29x was not
+SEPARATION_TARGET = 1.0
 LOOKAHEAD_MM = 9.0  # the design's pure pursuit (the PI controller's default look-ahead)
 PATH_DS_MM = 0.5  # spacing of the circle's points
 RADIUS_MM = (15.0, 35.0)  # the circle's radius: half the logs' horizontal spread, within this range
@@ -163,10 +171,25 @@ def design_experiment(step, tl: Timeline, fitter, floor_mm: float | None, say=No
             sep = np.minimum(sep, np.nan_to_num(per, nan=0.0))
     best = int(np.argmax(sep))
     record = [{"excitation": e.describe(), "separation_mm": float(s)} for e, s in zip(tried, sep)]
-    say(f"experiment: {tried[best].describe()}: the members' predictions differ by {sep[best]:.2f} mm"
-        + (f" ({sep[best] / floor_mm:.1f}x the noise floor)" if floor_mm else ""))
-    return Experiment(members=members, excitation=tried[best], dt_s=dt, center_mm=[float(x) for x in center],
+    chosen = replace(tried[best], duration_s=sized_duration(float(sep[best]), floor_mm, duration_s))
+    say(f"experiment: {chosen.describe()}: the members' predictions differ by {sep[best]:.2f} mm"
+        + (f" ({sep[best] / floor_mm:.1f}x the noise floor)" if floor_mm else "")
+        + f"; {chosen.duration_s:.0f} s long")
+    return Experiment(members=members, excitation=chosen, dt_s=dt, center_mm=[float(x) for x in center],
                       radius_mm=float(radius), separation_mm=float(sep[best]), floor_mm=floor_mm, tried=record)
+
+
+def sized_duration(separation_mm: float, floor_mm: float | None, base_s: float = DURATION_S) -> float:
+    """How long [s] an experiment whose members' predictions differ by ``separation_mm`` (mean over its windows)
+    must last for that to show against a noise floor ``floor_mm`` [mm]: a paired test's t grows with the square
+    root of the windows, so ``base_s`` x (:data:`SEPARATION_TARGET` x floor / separation)^2, at least ``base_s``
+    and at most :data:`MAX_DURATION_S` (``base_s`` when there is no floor)."""
+    if not floor_mm or floor_mm <= 0 or not np.isfinite(separation_mm):
+        return float(base_s)
+    if separation_mm <= 0:
+        return float(max(base_s, MAX_DURATION_S))
+    need = base_s * (SEPARATION_TARGET * floor_mm / separation_mm) ** 2
+    return float(min(max(need, base_s), max(base_s, MAX_DURATION_S)))
 
 
 def spin_band(tl: Timeline) -> tuple[float, float]:

@@ -30,6 +30,9 @@ import numpy as np
 
 from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T
 
+# effects that can mimic each other: a stepwise round gives each member the full fit once one of them would be
+# named (a quick screen's fit may miss a member the group test needs)
+FAMILIES = (frozenset({"actuation_lag", "sensor_latency", "heading_lag"}),)
 SAME_PREDICTION = 0.5  # predictions this share of the noise floor apart (or closer) cannot be told apart
 MIN_LOG_WINDOWS = 20  # a log's distance between two predictions counts with at least this many held-out windows
 

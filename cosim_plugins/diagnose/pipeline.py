@@ -42,7 +42,7 @@ from cosim_plugins.diagnose.localise import localise, window_features
 from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
-from cosim_plugins.diagnose.verdict import fit_notes, paired_t, verdict
+from cosim_plugins.diagnose.verdict import discovered_explains, fit_notes, paired_t, verdict
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
 from cosim_plugins.identify.joint import JointModel, OpenLoop, supports_effects
@@ -230,8 +230,12 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     result["verdict"] = verdict(result, s.reference)
     source = None
     if s.discover or result["verdict"]["status"] == "unexplained" or _left_above_floor(result, s.reference):
-        result["discovered"], source = _discover(final, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter,
-                                                 say, open_train)
+        result["discovered"], source, found_fit = _discover(final, ttr, fit_starts, fit_len, tte, test_starts, s, dt,
+                                                            fitter, say, open_train)
+        if found_fit is not None and discovered_explains(result, s.reference):
+            given = _given_discovered(fitter, found_fit, candidates, selection, s, floor, say)
+            if given is not None:
+                result["stepwise"]["given_discovered"] = stepwise_json(given, s.reference, s.max_effects)
         result["verdict"] = verdict(result, s.reference)
     experiment = None
     groups = [st for st in selection.steps if st.is_group]
@@ -323,23 +327,42 @@ def _left_above_floor(result: dict, key: str) -> bool:
     return sw["joint"]["rollout_mm"][key] > DISCOVER_ABOVE_FLOOR * floor
 
 
+def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selection, s: Settings, floor: dict,
+                      say) -> Selection | None:
+    """The listed effects not chosen yet, searched stepwise again on top of the discovered form (``found``: the
+    final model plus it): a library effect beside one outside the library explains too small a share of the
+    error they make together to be named first, and shows once the discovered form is in. None when no room
+    (``--max-effects``) or no candidate is left."""
+    taken = {m for st in selection.steps for m in st.effects}
+    left = [e for e in candidates if e.name not in taken]
+    room = s.max_effects - len(selection.steps)
+    if not left or room < 1:
+        return None
+    say(f"given the discovered form: {len(left)} candidates")
+    first = rank(fitter, found, left, s.reference, say, screen=True)
+    return select(fitter, found, left, first, room, floor, s.reference, say)
+
+
 def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, say, train):
-    """(result["discovered"], effect file source or None): the sparse regression of :mod:`.discover` on what the
-    final model (the chosen effects in) leaves."""
+    """(result["discovered"], effect file source or None, the final model refitted with the discovered form (a
+    Fit) or None): the sparse regression of :mod:`.discover` on what the final model (the chosen effects in)
+    leaves."""
     from cosim_plugins.diagnose.discover import discover
 
     reference = final.model
     if not supports_effects(reference.host):
-        return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None
+        return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None, None
+    held = {}
 
     def refit(effect):  # its coefficients start at the linearised regression's: no other start is needed
         fit, _ = fitter.with_effects(final, [effect], fresh=False)
+        held["fit"] = fit
         return fit.fitted, fit.summary, fit.ev
 
     test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
     found = discover(reference, ttr, tte, train, test, refit, say, jobs=s.jobs)
     if found["status"] != "found":
-        return found, None
+        return found, None, None
     summ, ev = found.pop("summary"), found.pop("ev")
     found.pop("fitted")
     source = found.pop("source")
@@ -354,8 +377,8 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
     if not found["reduction"] > 0.0:  # the linearised choice did not survive the full refit (or it diverged)
         return {"status": "none", "explanation": "the sparse form chosen on the linearised problem does not lower "
                 "the held-out error once refitted: what is left looks like noise, or a form the candidates cannot "
-                "express", "terms": found["terms"]}, None
-    return found, source
+                "express", "terms": found["terms"]}, None, None
+    return found, source, held.get("fit")
 
 
 # ---------------------------------------------------------------- data

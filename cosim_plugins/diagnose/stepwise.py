@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from cosim_plugins.diagnose.lookalike import evidence_of, group_of
+from cosim_plugins.diagnose.lookalike import FAMILIES, evidence_of, group_of
 from cosim_plugins.diagnose.verdict import AT_FLOOR, MIN_REDUCTION, MIN_T, passes
 
 MAX_EFFECTS = 3  # default of --max-effects
@@ -118,6 +118,8 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
             entries, fits = rank(fitter, current, remaining, key, say, screen=True)
         rounds.append(entries)
         best = next((e for e in entries if e["identifiable"]), None)
+        if best is not None and passes(best, current.error(key), floor.get(key), key):
+            entries, best = _full_family(fitter, current, entries, fits, best, by_name, key, say)
         if best is None or not passes(best, current.error(key), floor.get(key), key):
             stop = "none_passes"
             break
@@ -138,6 +140,26 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
     if len(steps) >= 2:
         _backward(fitter, selection, by_name, floor.get(key), key, say)
     return selection
+
+
+def _full_family(fitter, current: Fit, entries: list, fits: dict, best: dict, by_name: dict, key: str, say):
+    """(entries, best) once every look-alike of ``best`` (:data:`.lookalike.FAMILIES`) that only had the quick
+    screen's fit has its full fit too: a quick fit of a lag can miss what the full fit of a latency finds, and
+    the group test needs both at their best. ``fits`` is updated in place."""
+    family = next((f for f in FAMILIES if best["effect"] in f), ())
+    todo = [by_name[e["effect"]] for e in entries if e.get("screened") and e["effect"] in family]
+    if not todo:
+        return entries, best
+    say(f"  full fits of {best['effect']}'s look-alikes: {', '.join(e.name for e in todo)}")
+    done = {}
+    for effect, (fit, identifiable) in zip(todo, fitter.with_each(current, todo)):
+        done[effect.name] = fitter.entry(effect, fit, identifiable, current)
+        fits[effect.name] = fit
+        got = done[effect.name]
+        say(f"  {effect.name}: {got['reduction']:+.1%} at {key} s (t = {got['t_stat']:.1f})")
+    entries = sorted((done.get(e["effect"], e) for e in entries), key=lambda r: (r["identifiable"], r["reduction"]),
+                     reverse=True)
+    return entries, next(e for e in entries if e["identifiable"])
 
 
 def _interchangeable(fitter, members: list, evidence: dict, fits: dict, by_name: dict, key: str, say):
@@ -163,14 +185,18 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
 
     ``screen``: every effect first gets a quick fit (``fitter.with_effects(..., quick=True)``); the full fit
     goes to the :data:`SCREEN_KEEP` best whose quick drop reaches :data:`SCREEN_MIN`, the others keep their
-    quick entry (marked ``"screened": True``). A quick fit stops sooner, so it tends to understate a drop:
-    :data:`SCREEN_MIN` is well below the verdict's own threshold.
+    quick entry (marked ``"screened": True``). A quick fit stops sooner and skips the open-loop polish that
+    ``before`` had, so its drop is measured against ``before`` refitted the same quick way, with no effect
+    added (``fitter.with_effects(before, [], quick=True)``): against the polished ``before`` every quick fit
+    would look worse, the polish's gain counted as the candidate's loss. :data:`SCREEN_MIN` is well below the
+    verdict's own threshold.
     """
     entries, fits = {}, {}
     todo = list(effects)
     if screen and len(effects) > SCREEN_KEEP:
+        same_way, _ = fitter.with_effects(before, [], quick=True)  # the quick fits' reference
         for effect, (fit, identifiable) in zip(effects, fitter.with_each(before, effects, quick=True)):
-            entries[effect.name] = {**fitter.entry(effect, fit, identifiable, before), "screened": True}
+            entries[effect.name] = {**fitter.entry(effect, fit, identifiable, same_way), "screened": True}
             fits[effect.name] = fit
         hopeful = sorted((e for e in entries.values() if e["identifiable"] and e["reduction"] >= SCREEN_MIN),
                          key=lambda e: -e["reduction"])[:SCREEN_KEEP]

@@ -121,15 +121,15 @@ def _verdict(result: dict, key: str) -> dict:
     err, floor = ref["rollout_mm"][key], result["noise"]["floor_mm"][key]
     sw = result["stepwise"]
     steps = sw["steps"]
-    named = [st["effects"][0] for st in steps if not st["group"]]
+    given = (sw.get("given_discovered") or {}).get("steps") or []
+    named = [st["effects"][0] for st in steps + given if not st["group"]]
     out = {"effect": named[0] if named else None, "effects": named,
-           "lookalikes": [list(st["effects"]) for st in steps if st["group"]]}
+           "lookalikes": [list(st["effects"]) for st in steps + given if st["group"]]}
     prefix = _added_text(result, key)
     left = sw["joint"]["rollout_mm"][key] if steps else err
     found = result.get("discovered") or {}
     text = _steps_text(result, key) if steps else ""
-    if (found.get("status") == "found" and left and found["reduction"] >= MIN_REDUCTION
-            and found["t_stat"] >= MIN_T and found["rollout_mm"][key] <= (1.0 - DISCOVERED_MARGIN) * left):
+    if discovered_explains(result, key):
         best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
         what = ("what they leave" if steps else "the error") + (
             "" if steps or best is None else f" (the best listed effect, {best['effect']}, lowers it by only "
@@ -138,7 +138,7 @@ def _verdict(result: dict, key: str) -> dict:
                  f"of force terms lowers it by a further {found['reduction']:.0%} (from {left:.2f} to "
                  f"{found['rollout_mm'][key]:.2f} mm at {key} s; t = {found['t_stat']:.1f}). "
                  + _sentence("; ".join(found["words"])) + f". It is written to {found['file']}: rename it, edit its "
-                 f"form and refit with --effects-file {found['file']} --add discovered.")
+                 f"form and refit with --effects-file {found['file']} --add discovered." + _given_text(result, key))
         return {**out, "status": "discovered", "explanation": prefix + text.strip()}
     if steps:
         if floor is not None and left > (1 + AT_FLOOR) * floor:
@@ -168,6 +168,36 @@ def _verdict(result: dict, key: str) -> dict:
     text = (f"no listed effect explains the remaining error: {err:.2f} mm at {horizon} against {floor_text}."
             f"{best_text} " + _clues_text(result) + _discovered_text(result, key))
     return {**out, "status": "unexplained", "explanation": prefix + text}
+
+
+def discovered_explains(result: dict, key: str) -> bool:
+    """True when the discovered form (``result["discovered"]``) lowers what the chosen effects leave (or the
+    reference's error) by >= :data:`MIN_REDUCTION` with t >= :data:`MIN_T`, to at most 1 - :data:`DISCOVERED_MARGIN`
+    of it: the verdict then reports it."""
+    sw, found = result["stepwise"], result.get("discovered") or {}
+    ref = result["reference"] or result["baseline"]
+    left = sw["joint"]["rollout_mm"][key] if sw["steps"] else ref["rollout_mm"][key]
+    return bool(found.get("status") == "found" and left and found["reduction"] >= MIN_REDUCTION
+                and found["t_stat"] >= MIN_T and found["rollout_mm"][key] <= (1.0 - DISCOVERED_MARGIN) * left)
+
+
+def _given_text(result: dict, key: str) -> str:
+    """What the stepwise search named on top of the discovered form, one sentence per step."""
+    sw = result["stepwise"].get("given_discovered") or {}
+    floor = result["noise"]["floor_mm"][key]
+    parts = []
+    for st in sw.get("steps") or []:
+        share = explained_share(st["rollout_before_mm"], st["rollout_mm"], floor)
+        drop = (f"the held-out error at {key} s falls from {st['rollout_before_mm']:.2f} to {st['rollout_mm']:.2f} mm "
+                f"({st['reduction']:.0%}; t = {st['t_stat']:.1f}"
+                + (f"; {min(share, 1.0):.0%} of the excess over the noise floor)" if floor is not None else ")"))
+        if st["group"]:
+            parts.append(f" Given the discovered form, {' or '.join(st['effects'])} explain part of what is left "
+                         f"about equally well ({drop} with {st['effects'][0]}); none of them is named.")
+        else:
+            parts.append(f" Given the discovered form, {st['effects'][0]} explains part of what is left: refitted "
+                         f"with it, {drop}. Fitted: {params_text(st['params'])}.")
+    return "".join(parts)
 
 
 def _steps_text(result: dict, key: str) -> str:

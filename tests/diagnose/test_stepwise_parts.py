@@ -96,3 +96,82 @@ def test_the_design_loop_keeps_a_model_on_its_circle():
     assert np.all(np.abs(radius - 25.0) < 6.0) and np.all(np.abs(seen[0, 200:, 2]) < 6.0)
     angle = np.unwrap(np.arctan2(seen[0, :, 1], seen[0, :, 0]))
     assert angle[-1] - angle[0] > np.pi  # it travels along the circle
+
+
+def test_an_experiment_lasts_long_enough_for_its_separation_to_show():
+    """A separation at the target needs the base length; half of it four times as many windows; the length is
+    capped, and without a floor stays the base."""
+    from cosim_plugins.diagnose.experiment import DURATION_S, MAX_DURATION_S, SEPARATION_TARGET, sized_duration
+
+    floor = 0.2
+    assert sized_duration(SEPARATION_TARGET * floor * 3.0, floor) == DURATION_S
+    assert sized_duration(SEPARATION_TARGET * floor, floor) == pytest.approx(DURATION_S)
+    assert sized_duration(SEPARATION_TARGET * floor / 2.0, floor) == pytest.approx(4.0 * DURATION_S)
+    assert sized_duration(SEPARATION_TARGET * floor / 100.0, floor) == MAX_DURATION_S
+    assert sized_duration(0.0, floor) == MAX_DURATION_S
+    assert sized_duration(0.01, None) == DURATION_S
+
+
+class _Quick:
+    """A fitter whose quick fits lose what the open-loop polish gave the model before (``POLISH`` mm): each
+    candidate effect takes ``gain`` [mm] off the error, quick or full."""
+
+    POLISH = 0.3
+
+    def __init__(self, gain: dict):
+        self.gain = gain
+
+    def _fit(self, err):
+        from cosim_plugins.diagnose.stepwise import Fit
+
+        return Fit(model=None, ev={}, summary={"rollout_mm": {"1.0": err}})
+
+    def with_effects(self, before, effects, quick=False):
+        lost = self.POLISH if quick else 0.0
+        return self._fit(before.error("1.0") + lost - sum(self.gain[e.name] for e in effects)), True
+
+    def with_each(self, before, effects, quick=False):
+        return [self.with_effects(before, [e], quick) for e in effects]
+
+    def entry(self, effect, fit, identifiable, before):
+        err = fit.error("1.0")
+        return {"effect": effect.name, "reduction": 1.0 - err / before.error("1.0"), "t_stat": 5.0,
+                "identifiable": identifiable, "rollout_mm": {"1.0": err}}
+
+
+def test_a_quick_screen_is_measured_against_the_model_before_refitted_the_same_quick_way():
+    """The candidate that lowers the error by 0.2 mm reaches the full fit although its quick fit, without the
+    polish, ends above the polished model before; the others keep their quick entries."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import SCREEN_KEEP, rank
+
+    gain = {"lag": 0.2, "flow": 0.0, "drag": 0.0, "wall": 0.0, "latency": 0.0}
+    assert len(gain) > SCREEN_KEEP
+    fitter = _Quick(gain)
+    before = fitter._fit(1.0)
+    entries, _ = rank(fitter, before, [SimpleNamespace(name=n) for n in gain], "1.0", screen=True)
+    lag = next(e for e in entries if e["effect"] == "lag")
+    assert entries[0] is lag and not lag.get("screened") and lag["reduction"] == pytest.approx(0.2)
+    assert all(e.get("screened") for e in entries if e["effect"] != "lag")
+
+
+def test_the_look_alikes_of_a_candidate_about_to_be_named_get_their_full_fit():
+    """A latency fully fitted leads a round in which the lag had only its quick fit: the lag gets the full fit
+    before the group test, and leads once it does better; a flow's quick entry stays as it was."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import _full_family
+
+    fitter = _Quick({"sensor_latency": 0.2, "actuation_lag": 0.25, "background_flow": 0.0})
+    before = fitter._fit(1.0)
+    quick = {"reduction": -0.06, "t_stat": -1.0, "identifiable": True, "screened": True, "rollout_mm": {"1.0": 1.06}}
+    entries = [{"effect": "sensor_latency", "reduction": 0.2, "t_stat": 5.0, "identifiable": True,
+                "rollout_mm": {"1.0": 0.8}},
+               {"effect": "background_flow", **quick}, {"effect": "actuation_lag", **quick}]
+    by_name = {n: SimpleNamespace(name=n) for n in fitter.gain}
+    fits = {}
+    entries, best = _full_family(fitter, before, entries, fits, entries[0], by_name, "1.0", lambda m: None)
+    assert best["effect"] == "actuation_lag" and best["reduction"] == pytest.approx(0.25) and "actuation_lag" in fits
+    assert [e["effect"] for e in entries] == ["actuation_lag", "sensor_latency", "background_flow"]
+    assert entries[-1].get("screened")

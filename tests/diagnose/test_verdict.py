@@ -253,6 +253,26 @@ def test_a_discovered_form_explains_the_error_and_what_named_effects_leave():
         "A form outside the library explains the error: a sparse")
 
 
+def test_an_effect_named_given_the_discovered_form_joins_the_named_set():
+    """A library effect beside an outside one: named once the discovered form is in (the stepwise search run
+    again on top of it), after the effects of the first search, in the verdict's words and set."""
+    given = {"steps": [step("actuation_lag", 0.5, 0.25, t=7.5)]}
+    r = result(1.0, 0.2, ranking=[cand("wall_drag", 0.05, 1.0)], discovered=found(0.5))
+    r["stepwise"]["given_discovered"] = given
+    v = verdict(r, K)
+    assert v["status"] == "discovered" and v["effects"] == ["actuation_lag"] and v["effect"] == "actuation_lag"
+    assert v["explanation"].endswith(
+        "--add discovered. Given the discovered form, actuation_lag explains part of what is left: refitted with it, "
+        "the held-out error at 1.0 s falls from 0.50 to 0.25 mm (50%; t = 7.5; 83% of the excess over the noise "
+        "floor). Fitted: k = 2.00 ± 0.10 mm/s.")
+    r = result(2.0, 0.2, steps=[step("wall_drag", 2.0, 1.0)], joint_left=1.0, discovered=found(0.5))
+    r["stepwise"]["given_discovered"] = {"steps": [step("heading_lag", 0.5, 0.3, group=("actuation_lag",))]}
+    v = verdict(r, K)
+    assert v["effects"] == ["wall_drag"] and v["lookalikes"] == [["heading_lag", "actuation_lag"]]
+    assert "Given the discovered form, heading_lag or actuation_lag explain part of what is left about equally " \
+           "well" in v["explanation"]
+
+
 # --- drift --------------------------------------------------------------------------------------------------------
 
 def drift(left):
