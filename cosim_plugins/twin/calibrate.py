@@ -43,7 +43,7 @@ from cosim.contract.errors import UserError
 from cosim_plugins.diagnose.fitting import fork_map
 from cosim_plugins.twin import knobs as K
 from cosim_plugins.twin.host_forces import paper_forces_effect
-from cosim_plugins.twin.replay import FmuRunner, make_chunks, window_errors
+from cosim_plugins.twin.replay import FmuBank, make_chunks, window_errors
 
 SWITCHES = ("actuation_lag_on", "heading_dynamics_on")  # FMU dynamics the logs may show or not (chosen)
 SWITCHED = {"rot_drag_perp": "heading_dynamics_on"}  # knobs that act only with their FMU switch on
@@ -98,15 +98,24 @@ class Replay:
         self.n = int(sum(len(c.starts) for c in self.chunks))
 
     def trajectories(self, settings: list, what: str) -> list:
-        """[[traj (rows + 1, 6) per chunk] per setting]; a setting is (fmu params, AppliedEffects or None)."""
+        """[[traj (rows + 1, 6) per chunk] per setting]; a setting is (fmu params, AppliedEffects or None).
+
+        The chunks are split into ``jobs`` groups of about equal rows, each replayed in lockstep under
+        every setting by one process (:class:`.replay.FmuBank`)."""
         tl, chunks = self.tl, self.chunks
+        groups = _groups([c.r1 - c.r0 for c in chunks], self.jobs)
+        bank = _bank()  # loaded before the fork: the workers inherit it
 
-        def one(i):
-            runner = _runner()
-            return [runner.run(chunks[i], prm, tl.dt_s, applied) for prm, applied in settings]
+        def one(g):
+            return bank.run([chunks[i] for i in groups[g]], settings, tl.dt_s)
 
-        per_chunk = fork_map(one, len(chunks), self.jobs, what)
-        return [[per_chunk[c][s] for c in range(len(chunks))] for s in range(len(settings))]
+        per_group = fork_map(one, len(groups), self.jobs, what)
+        out = [[None] * len(chunks) for _ in settings]
+        for g, res in zip(groups, per_group):
+            for s, trajs in enumerate(res):
+                for i, tr in zip(g, trajs):
+                    out[s][i] = tr
+        return out
 
     def errors(self, trajs: list, latency_s: float, tau_s: float):
         """(valid (w, H), err (w, H, 3) [mm], chunk id (w,)) of one setting's trajectories (initial states solved
@@ -120,14 +129,25 @@ class Replay:
         return np.concatenate(vs), np.concatenate(es), np.concatenate(ids)
 
 
-_RUNNER = {}
+_BANK = {}
 
 
-def _runner() -> FmuRunner:
-    """This process's FMU instance (a forked worker inherits its parent's and resets it per run)."""
-    if "fmu" not in _RUNNER:
-        _RUNNER["fmu"] = FmuRunner()
-    return _RUNNER["fmu"]
+def _bank() -> FmuBank:
+    """This process's FMU bank (a forked worker inherits its parent's)."""
+    if "fmu" not in _BANK:
+        _BANK["fmu"] = FmuBank()
+    return _BANK["fmu"]
+
+
+def _groups(rows: list, n: int) -> list:
+    """Indices of ``rows`` (rows of each chunk) in at most ``n`` groups of about equal total rows."""
+    n = max(1, min(n, len(rows)))
+    groups, load = [[] for _ in range(n)], [0] * n
+    for i in sorted(range(len(rows)), key=lambda i: -rows[i]):
+        g = int(np.argmin(load))
+        groups[g].append(i)
+        load[g] += rows[i]
+    return [sorted(g) for g in groups if g]
 
 
 def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, progress=None) -> Calibration:
