@@ -42,12 +42,15 @@ from scipy.optimize import least_squares
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose.fitting import fork_map
 from cosim_plugins.twin import knobs as K
+from cosim_plugins.twin.host_forces import NAME as PAPER
 from cosim_plugins.twin.host_forces import paper_forces_effect
 from cosim_plugins.twin.replay import FmuBank, make_chunks, window_errors
 
 SWITCHES = ("actuation_lag_on", "heading_dynamics_on")  # FMU dynamics the logs may show or not (chosen)
 SWITCHED = {"rot_drag_perp": "heading_dynamics_on"}  # knobs that act only with their FMU switch on
 SWITCH_GAIN = 0.02  # a switch turned on must lower the training rms error by this share
+SWITCH_NFEV = 3  # polish steps of each first-stage candidate (start and switches) before they are compared
+STAGE_CHUNKS = 15  # training chunks of the first stage (every other one of the polish's)
 TRAIN_CHUNKS = 30  # training chunks of the FMU polish (a random sample of 1 s spans)
 POLISH_EVERY = 5  # the polish scores each window every this many rows up to the reference horizon
 MAX_NFEV = 10  # polish iterations (each: one Jacobian by finite differences, all knobs at once)
@@ -96,6 +99,13 @@ class Replay:
         self.tl, self.lead, self.ks, self.jobs = tl, lead, np.asarray(ks), jobs
         self.chunks = chunks if chunks is not None else make_chunks(tl, starts, lead, int(np.max(ks)))
         self.n = int(sum(len(c.starts) for c in self.chunks))
+
+    def subsample(self, n: int) -> "Replay":
+        """The replay of about ``n`` of these chunks, evenly spread (the first stage's cheaper problem)."""
+        if len(self.chunks) <= n:
+            return self
+        pick = np.unique(np.linspace(0, len(self.chunks) - 1, n).round().astype(int))
+        return Replay(self.tl, None, self.lead, self.ks, self.jobs, chunks=[self.chunks[i] for i in pick])
 
     def trajectories(self, settings: list, what: str) -> list:
         """[[traj (rows + 1, 6) per chunk] per setting]; a setting is (fmu params, AppliedEffects or None).
@@ -178,8 +188,7 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
     start = {**(K.plant_from_host(host["params"]) if host["params"] else K.plant_defaults()),
              "latency_s": host["latency_s"]}
     start.update({q: host["params"].get(q, p.init) for e in forces for q, p in zip(e.param_names(), e.params)})
-    start.update({f"{paper.name}.Cl0": host["params"].get("Cl0", 0.0),
-                  f"{paper.name}.Fmax": host["params"].get("Fmax", 0.0)})
+    start.update({f"{paper.name}.{q}": host["params"].get(q, 0.0) for q in ("Cd0", "Cl0", "Fmax")})
     knobs = [*K.PLANT_KNOBS, K.LATENCY, *K.effect_knobs(applied_effects)]
     unknown = sorted(set(s.free or ()) - {k.name for k in knobs})
     if unknown:
@@ -200,13 +209,11 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
                          [start["latency_s"]], "mapped FMU")[0]
     say(f"uncalibrated FMU: {_fmt(uncal)}; host fit mapped onto the FMU: {_fmt(mapped_h)}")
 
-    switches = dict(host_structure)
-    values, std, info = _polish(train, knobs, start, applied_effects, s, say, switches)
-    chosen, switch_rms = _switches(train, values, applied_effects, say)
-    if chosen != switches:
-        switches = chosen
-        values, std, info = _polish(train, knobs, values, applied_effects, s, say, switches,
-                                    max_nfev=max(2, s.max_nfev // 2))
+    fmu_start = {**start, **{k: v for k, v in K.plant_defaults().items() if k in start}}
+    candidates = _candidates(start if host["params"] else None, fmu_start)
+    first, switch_rms, trial = _choose(train.subsample(STAGE_CHUNKS), knobs, candidates, applied_effects, s, say)
+    switches = candidates[first][1]
+    values, std, info = _polish(train, knobs, trial, applied_effects, s, say, switches)
     calibrated = _held_out(test, [_setting(values, applied_effects, switches)],
                            [values["latency_s"]], "calibrated twin")[0]
     say(f"calibrated twin: {_fmt(calibrated)}")
@@ -229,11 +236,11 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
         "held_out_error_mm": calibrated, "uncalibrated_error_mm": uncal, "mapped_error_mm": mapped_h,
         "host_error_mm": host["rollout_mm"], "host_model": host["origin"],
         "params": {k.name: {"value": values[k.name], "std": _finite(std[k.name]), "unit": units[k.name],
-                            "start": start[k.name], "where": k.where, "doc": k.doc} for k in knobs},
+                            "start": candidates[first][0][k.name], "where": k.where, "doc": k.doc} for k in knobs},
         "host_params": {n: {"value": v, "std": _finite(host["std"].get(n))} for n, v in host["params"].items()},
         "camera_noise_mm": dict(zip("xyz", map(float, sigma))) if sigma is not None else None,
         "heading_time_constant_s": K.heading_time_constant_s(values["rot_drag_perp"]),
-        "switches": switches, "switches_rms_mm": switch_rms,
+        "switches": switches, "first_stage": {"kept": first, "rms_mm": switch_rms},
         "not_determined": undetermined, "held_fixed": K.NOT_DETERMINED, "polish": info,
     }
     result["timing_s"] = round(time.perf_counter() - t0, 2)
@@ -329,14 +336,25 @@ def _train_replay(win, ks, s: Settings) -> Replay:
 def _setting(values: dict, effects, switches: dict | None = None) -> tuple:
     """(FMU parameters, AppliedEffects) of knob values (and the FMU's effect ``switches``)."""
     from cosim_plugins.twin.applied import AppliedEffects
-    from cosim_plugins.twin.units import host_params_from_fmu
 
     fmu = {**K.fmu_values({k: v for k, v in values.items() if k in {p.name for p in K.PLANT_KNOBS}}),
            **(switches or {})}
     eff = {q: float(values[q]) for e in effects for q in e.param_names()}
     # the effects reuse the twin's own drag, thrust and weight (a flow's w is then the flow's speed), never the
     # host fit's: the FMU's law may need other values than the host model's to give the same motion
-    return fmu, AppliedEffects(effects, eff, host_params_from_fmu(fmu))
+    return fmu, AppliedEffects(effects, eff, effects_host(fmu, values))
+
+
+def effects_host(fmu: dict, values: dict) -> dict:
+    """The host parameters (k, Cd0, Cd1, ...; uN, mm, s) the twin's effects reuse: its FMU's (``fmu``, by FMI
+    name), with the angle-of-attack drag Cd0 of ``twin_paper_forces`` when the knob ``values`` hold one."""
+    from cosim_plugins.twin.units import host_params_from_fmu
+
+    host = host_params_from_fmu(fmu)
+    cd0 = values.get(f"{PAPER}.Cd0")
+    if cd0 is not None:
+        host["Cd0"] = float(cd0)
+    return host
 
 
 def _held_out(replay: Replay, settings: list, latencies: list, what: str) -> list:
@@ -351,29 +369,47 @@ def _held_out(replay: Replay, settings: list, latencies: list, what: str) -> lis
     return out
 
 
-def _switches(train: Replay, values: dict, effects, say) -> tuple[dict, dict]:
-    """(the FMU dynamics switches the training windows favour at ``values``, the rms error [mm] of each
-    combination): every combination of :data:`SWITCHES` replayed once; the host model's structure (both off)
-    is kept unless another lowers the rms error by more than :data:`SWITCH_GAIN`."""
+def _candidates(host_start: dict | None, fmu_start: dict) -> dict:
+    """{name: (start values, FMU switches)} the first stage compares, the preferred one first: the host fit
+    mapped onto the FMU under every combination of :data:`SWITCHES` (both off, the host model's structure,
+    preferred) and the FMU's own defaults with its own dynamics (both on); without a host fit, the FMU's
+    defaults under every combination (its own dynamics preferred). Effect knobs start at the host fit's
+    values in both."""
     import itertools
 
     combos = [dict(zip(SWITCHES, bits)) for bits in itertools.product((False, True), repeat=len(SWITCHES))]
-    trajs = train.trajectories([_setting(values, effects, c) for c in combos], "FMU switches")
-    rms = []
-    for tr in trajs:
-        valid, err, _ = train.errors(tr, values["latency_s"],
-                                     _tau(K.fmu_values({"drag_axial": values["drag_axial"]})))
-        rms.append(float(np.sqrt(np.mean(err[valid] ** 2))) if valid.any() else np.inf)
-    best = int(np.argmin(rms))
-    if not rms[best] < (1.0 - SWITCH_GAIN) * rms[0]:
-        best = 0
-    table = {",".join(f"{k}={v}" for k, v in c.items()): r for c, r in zip(combos, rms)}
-    say("FMU switches: " + "; ".join(f"{k}: {v:.3f} mm" for k, v in table.items()) + f" -> {list(table)[best]}")
-    return combos[best], table
+    label = {(False, False): "host structure", (True, True): "FMU dynamics", (True, False): "coil lag only",
+             (False, True): "heading dynamics only"}
+    if host_start is None:
+        return {f"FMU defaults, {label[tuple(c.values())]}": (fmu_start, c) for c in combos[::-1]}
+    out = {f"host fit, {label[tuple(c.values())]}": (host_start, c) for c in combos}
+    out["FMU defaults, FMU dynamics"] = (fmu_start, combos[-1])
+    return out
+
+
+def _choose(train: Replay, knobs, candidates: dict, effects, s: Settings, say) -> tuple[str, dict, dict]:
+    """(the candidate kept, the training rms error [mm] of each, its briefly polished values): each candidate
+    (start values and FMU switches, :func:`_candidates`) is polished :data:`SWITCH_NFEV` steps on ``train`` (a
+    subsample of the training chunks) and the first (preferred) one kept unless another lowers its rms error
+    by more than :data:`SWITCH_GAIN`. Brief polishes, not the starts, are compared: a switch turned on needs its
+    own values (the coils' lag delays the thrust: a drag fitted without it is off), and a start far from the
+    logs' values (the host model's drag absorbs what its law lacks) needs steps to show where it leads."""
+    table, trials = {}, {}
+    for name, (start, switches) in candidates.items():
+        trials[name], _, info = _polish(train, knobs, start, effects, s, lambda m: None, switches,
+                                        max_nfev=SWITCH_NFEV, with_std=False)
+        table[name] = info["rms_mm"]
+    first = next(iter(candidates))
+    best = min(table, key=table.get)
+    if not table[best] < (1.0 - SWITCH_GAIN) * table[first]:
+        best = first
+    say(f"first stage ({SWITCH_NFEV} polish steps each on {train.n} windows): "
+        + "; ".join(f"{k}: {v:.3f} mm" for k, v in table.items()) + f" -> {best}")
+    return best, table, trials[best]
 
 
 def _polish(train: Replay, knobs, start: dict, effects, s: Settings, say, switches: dict,
-            max_nfev: int | None = None):
+            max_nfev: int | None = None, with_std: bool = True):
     """(values, std, info): every knob refined on the FMU's replay of the training chunks (see the module doc)."""
     held = {k.name: start[k.name] for k in knobs if (s.free is not None and k.name not in s.free)
             or (k.name in SWITCHED and not switches[SWITCHED[k.name]])}
@@ -435,8 +471,12 @@ def _polish(train: Replay, knobs, start: dict, effects, s: Settings, say, switch
                         ftol=1e-4, xtol=1e-4)
     x = sol.x
     r, ids = batch([x])[0]
-    J = jac(x)
-    std_x = _cluster_std(J, r, ids)
+    if not with_std:
+        std_x = np.full(len(x), np.nan)
+    else:
+        last = state["jac"]  # the solver's Jacobian at its last accepted point, which is the solution
+        J = last[1] if last is not None and np.array_equal(last[0], x) else jac(x)
+        std_x = _cluster_std(J, r, ids)
     values = values_of(x)
     std = {n: float("nan") for n in held}  # held, not fitted
     for k, v, sx in zip(knobs, x, std_x):
