@@ -15,8 +15,8 @@ Route (fast fit first, then the FMU; both reported):
    combination of the FMU's coil lag and heading dynamics (both off, instant actuation
    and the axis on the spin axis, is the host model's structure and preferred), and the
    FMU's own defaults with its own dynamics. Each is polished briefly (3 steps, every
-   other training chunk) and the preferred one kept unless another lowers the training
-   error by more than 2 % (:func:`_choose`).
+   other training chunk), scored on the other training chunks, and the preferred one
+   kept unless another lowers that error by more than 2 % (:func:`_choose`).
 4. **FMU polish.** From the kept candidate every knob (:mod:`.knobs`: propulsion, drags,
    anisotropy, net weight, heading response, gradient force, camera latency, effect
    parameters) is refined by least squares on the FMU's own open-loop replay of the
@@ -53,9 +53,8 @@ from cosim_plugins.twin.replay import FmuBank, make_chunks, window_errors
 
 SWITCHES = ("actuation_lag_on", "heading_dynamics_on")  # FMU dynamics the logs may show or not (chosen)
 SWITCHED = {"rot_drag_perp": "heading_dynamics_on"}  # knobs that act only with their FMU switch on
-SWITCH_GAIN = 0.02  # a switch turned on must lower the training rms error by this share
+SWITCH_GAIN = 0.05  # another first-stage candidate must lower the preferred one's error by this share
 SWITCH_NFEV = 3  # polish steps of each first-stage candidate (start and switches) before they are compared
-STAGE_CHUNKS = 15  # training chunks of the first stage (every other one of the polish's)
 TRAIN_CHUNKS = 30  # training chunks of the FMU polish (a random sample of 1 s spans)
 POLISH_EVERY = 5  # the polish scores each window every this many rows up to the reference horizon
 MAX_NFEV = 10  # polish iterations (each: one Jacobian by finite differences, all knobs at once)
@@ -105,12 +104,10 @@ class Replay:
         self.chunks = chunks if chunks is not None else make_chunks(tl, starts, lead, int(np.max(ks)))
         self.n = int(sum(len(c.starts) for c in self.chunks))
 
-    def subsample(self, n: int) -> "Replay":
-        """The replay of about ``n`` of these chunks, evenly spread (the first stage's cheaper problem)."""
-        if len(self.chunks) <= n:
-            return self
-        pick = np.unique(np.linspace(0, len(self.chunks) - 1, n).round().astype(int))
-        return Replay(self.tl, None, self.lead, self.ks, self.jobs, chunks=[self.chunks[i] for i in pick])
+    def halves(self) -> tuple["Replay", "Replay"]:
+        """The replays of every other chunk, from the first and from the second (the first stage fits on one
+        and compares on the other)."""
+        return tuple(Replay(self.tl, None, self.lead, self.ks, self.jobs, chunks=self.chunks[i::2]) for i in (0, 1))
 
     def trajectories(self, settings: list, what: str) -> list:
         """[[traj (rows + 1, 6) per chunk] per setting]; a setting is (fmu params, AppliedEffects or None).
@@ -216,7 +213,8 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
 
     fmu_start = {**start, **{k: v for k, v in K.plant_defaults().items() if k in start}}
     candidates = _candidates(start if host["params"] else None, fmu_start)
-    first, switch_rms, trial = _choose(train.subsample(STAGE_CHUNKS), knobs, candidates, applied_effects, s, say)
+    fit_half, check_half = train.halves()
+    first, switch_rms, trial = _choose(fit_half, check_half, knobs, candidates, applied_effects, s, say)
     switches = candidates[first][1]
     values, std, info = _polish(train, knobs, trial, applied_effects, s, say, switches)
     calibrated = _held_out(test, [_setting(values, applied_effects, switches)],
@@ -392,24 +390,32 @@ def _candidates(host_start: dict | None, fmu_start: dict) -> dict:
     return out
 
 
-def _choose(train: Replay, knobs, candidates: dict, effects, s: Settings, say) -> tuple[str, dict, dict]:
-    """(the candidate kept, the training rms error [mm] of each, its briefly polished values): each candidate
-    (start values and FMU switches, :func:`_candidates`) is polished :data:`SWITCH_NFEV` steps on ``train`` (a
-    subsample of the training chunks) and the first (preferred) one kept unless another lowers its rms error
-    by more than :data:`SWITCH_GAIN`. Brief polishes, not the starts, are compared: a switch turned on needs its
-    own values (the coils' lag delays the thrust: a drag fitted without it is off), and a start far from the
-    logs' values (the host model's drag absorbs what its law lacks) needs steps to show where it leads."""
-    table, trials = {}, {}
+def _choose(fit: Replay, check: Replay, knobs, candidates: dict, effects, s: Settings,
+            say) -> tuple[str, dict, dict]:
+    """(the candidate kept, the rms error [mm] of each on ``check``, its briefly polished values): each candidate
+    (start values and FMU switches, :func:`_candidates`) is polished :data:`SWITCH_NFEV` steps on ``fit`` (half
+    the training chunks) and scored on ``check`` (the other half, which it was not fitted to); the first
+    (preferred) one is kept unless another lowers its error by more than :data:`SWITCH_GAIN`. Brief polishes,
+    not the starts, are compared: a switch turned on needs its own values (the coils' lag delays the thrust: a
+    drag fitted without it is off), and a start far from the logs' values (the host model's drag absorbs what
+    its law lacks) needs steps to show where it leads; they are compared on chunks they were not fitted to, as
+    a switch's extra freedom lowers the error it was fitted on whether the logs' plant has it or not."""
+    trials, settings = {}, []
     for name, (start, switches) in candidates.items():
-        trials[name], _, info = _polish(train, knobs, start, effects, s, lambda m: None, switches,
-                                        max_nfev=SWITCH_NFEV, with_std=False)
-        table[name] = info["rms_mm"]
+        trials[name], _, _ = _polish(fit, knobs, start, effects, s, lambda m: None, switches,
+                                     max_nfev=SWITCH_NFEV, with_std=False)
+        settings.append(_setting(trials[name], effects, switches))
+    table = {}
+    for name, trajs in zip(candidates, check.trajectories(settings, "first stage")):
+        v = trials[name]
+        valid, err, _ = check.errors(trajs, v["latency_s"], _tau(K.fmu_values({"drag_axial": v["drag_axial"]})))
+        table[name] = float(np.sqrt(np.mean(err[valid] ** 2))) if valid.any() else float("inf")
     first = next(iter(candidates))
     best = min(table, key=table.get)
     if not table[best] < (1.0 - SWITCH_GAIN) * table[first]:
         best = first
-    say(f"first stage ({SWITCH_NFEV} polish steps each on {train.n} windows): "
-        + "; ".join(f"{k}: {v:.3f} mm" for k, v in table.items()) + f" -> {best}")
+    say(f"first stage ({SWITCH_NFEV} polish steps each on {fit.n} training windows, scored on the other "
+        f"{check.n}): " + "; ".join(f"{k}: {v:.3f} mm" for k, v in table.items()) + f" -> {best}")
     return best, table, trials[best]
 
 
