@@ -154,7 +154,17 @@ def _twin(d: dict) -> str:
             f"against uncalibrated {lab['uncalibrated_mm']:.3f} mm ({lab['twin_over_uncalibrated']:.2f}x) and host "
             f"{lab['host_mm']:.3f} mm; blind bench ({o['blind']['case']}): twin {blind['twin_mm']:.3f} mm, "
             f"{blind['twin_over_uncalibrated']:.2f}x uncalibrated, {blind['twin_over_host']:.2f}x the host model, "
-            f"{o['blind']['without_effect']['twin_mm']:.3f} mm without the effect")
+            f"{o['blind']['without_effect']['twin_mm']:.3f} mm without the effect" + _twin_fresh(o))
+
+
+def _twin_fresh(o: dict) -> str:
+    """The twin's blind figures on a fresh seed, when the run has one."""
+    if "blind_fresh" not in o:
+        return ""
+    f = o["blind_fresh"]
+    w = f["with_effect"]
+    return (f"; fresh seed {f['seed']}: twin {w['twin_mm']:.3f} mm, {w['twin_over_uncalibrated']:.2f}x uncalibrated, "
+            f"{w['twin_over_host']:.2f}x the host model, {f['without_effect']['twin_mm']:.3f} mm without the effect")
 
 
 def _blind(d: dict) -> str:

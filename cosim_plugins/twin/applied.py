@@ -75,10 +75,23 @@ class AppliedEffects:
         Args: p_m (3,) position [m], v_m_s (3,) velocity [m/s], omega_rad_s (3,) command [rad/s].
         Returns: (F (3,) [N], dF/dp (3, 3) [N/m], dF/dv (3, 3) [N s/m]), row a, column b = dF_a/dx_b.
         """
+        f, dfdp, dfdv = self.force_si_batch(np.reshape(p_m, (1, 3)), np.reshape(v_m_s, (1, 3)),
+                                            np.reshape(omega_rad_s, (1, 3)))
+        return f[0], dfdp[0], dfdv[0]
+
+    def force_si_batch(self, p_m, v_m_s, omega_rad_s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`force_si` at n states at once (one call of each effect).
+
+        Args: p_m, v_m_s, omega_rad_s: (n, 3) [m], [m/s], [rad/s].
+        Returns: (F (n, 3) [N], dF/dp (n, 3, 3) [N/m], dF/dv (n, 3, 3) [N s/m]); [i, a, b] = dF_a/dx_b at state i.
+        """
         p = np.asarray(p_m, dtype=float) * MM_PER_M
         v = np.asarray(v_m_s, dtype=float) * MM_PER_M
-        u = np.broadcast_to(np.asarray(omega_rad_s, dtype=float) * HZ_PER_RAD_S, (13, 3))
-        f = self.force_mm(p + self._dp, v + self._dv, u)  # rows: centre, +-p_x..z, +-v_x..z
-        dfdp = (f[1:4] - f[4:7]).T / (2.0 * STEP_MM)       # [uN/mm]
-        dfdv = (f[7:10] - f[10:13]).T / (2.0 * STEP_MM_S)  # [uN s/mm]
+        u = np.asarray(omega_rad_s, dtype=float) * HZ_PER_RAD_S
+        n = len(p)
+        f = self.force_mm((p[None] + self._dp[:, None]).reshape(-1, 3), (v[None] + self._dv[:, None]).reshape(-1, 3),
+                          np.broadcast_to(u, (13, n, 3)).reshape(-1, 3)).reshape(13, n, 3)
+        # rows: centre, +-p_x..z, +-v_x..z
+        dfdp = (f[1:4] - f[4:7]).transpose(1, 2, 0) / (2.0 * STEP_MM)       # (n, 3, 3) [uN/mm]
+        dfdv = (f[7:10] - f[10:13]).transpose(1, 2, 0) / (2.0 * STEP_MM_S)  # (n, 3, 3) [uN s/mm]
         return f[0] * N_PER_UN, dfdp * N_PER_UN_PER_MM, dfdv * N_PER_UN_PER_MM

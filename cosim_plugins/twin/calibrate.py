@@ -6,28 +6,33 @@ Route (fast fit first, then the FMU; both reported):
    ``cosim diagnose --add EFFECT`` fits it (:func:`cosim_plugins.diagnose.pipeline.run`,
    no candidates, no drift test), or read from a saved model (``--model M.npz``).
    Its held-out error is diagnose's figure for the best host model with these effects.
-2. **Mapping.** Its k, Cd0, Cd1, Fvs set the FMU's propulsion, drags and net weight
-   (:func:`.knobs.plant_from_host`); the effects' parameters and the paper's lift and
-   centring force, which the FMU's law lacks (:mod:`.host_forces`), go to the FMU's
-   external force input. A latency the host fitted (``sensor_latency``) starts the
-   camera's.
-3. **FMU polish.** With the host model's structure first (the FMU's coil lag and heading
-   dynamics off: instant actuation, the axis on the spin axis; no gradient force), every knob (:mod:`.knobs`:
-   propulsion, drags, anisotropy, net weight, heading response, gradient force, camera
-   latency, effect parameters) is refined by least squares on the FMU's own open-loop replay of training windows
-   (:mod:`.replay`; errors every 5 rows up to 1.0 s), in chunks spread over ``jobs``
-   processes; then each other combination of those two switches is replayed once and
-   kept (and the polish repeated, half as long) only if it lowers the training error by
-   more than 2 %. The FMU has what the host model lacks (heading dynamics, the coils' lag,
-   an anisotropic drag) and lacks what it has: the polish makes the two agree on the
-   logs, not on paper.
-4. **Held-out scores** on diagnose's held-out windows and horizons
+2. **Mapping.** Its k, Cd1, Fvs set the FMU's propulsion, drag and net weight, with an
+   isotropic drag (:func:`.knobs.plant_from_host`); the effects' parameters and the
+   paper's angle-of-attack drag, lift and centring force, which the FMU's law lacks
+   (:mod:`.host_forces`), go to the FMU's external force input. A latency the host
+   fitted (``sensor_latency``) starts the camera's.
+3. **First stage.** Candidates (:func:`_candidates`): the mapped host fit under each
+   combination of the FMU's coil lag and heading dynamics (both off, instant actuation
+   and the axis on the spin axis, is the host model's structure and preferred), and the
+   FMU's own defaults with its own dynamics. Each is polished briefly (3 steps, every
+   other training chunk), scored on the other training chunks, and the preferred one
+   kept unless another lowers that error by more than 2 % (:func:`_choose`).
+4. **FMU polish.** From the kept candidate every knob (:mod:`.knobs`: propulsion, drags,
+   anisotropy, net weight, heading response, gradient force, camera latency, effect
+   parameters) is refined by least squares on the FMU's own open-loop replay of the
+   training chunks (:mod:`.replay`: every chunk and trial value in lockstep, errors every
+   5 rows up to 1.0 s), the chunks spread over ``jobs`` processes. The FMU has what the
+   host model lacks (heading dynamics, the coils' lag, an anisotropic drag, the coils'
+   gradient force) and lacks what it has: the polish makes the two agree on the logs,
+   not on paper.
+5. **Held-out scores** on diagnose's held-out windows and horizons
    (:mod:`.windows`): the uncalibrated FMU (its defaults, no effects), the mapped FMU
-   (step 2) and the calibrated twin (step 3).
+   (step 2) and the calibrated twin (step 4).
 
 Uncertainties: the polish's covariance, robust to the correlation of the windows
-within one chunk (a sandwich over chunks); a knob whose standard error exceeds half
-its value (or its scale, for a knob that may be 0) is reported as not determined.
+within one chunk (a cluster jackknife over chunks, :func:`_cluster_std`); a knob whose
+standard error exceeds half its value (or its scale, for a knob that may be 0) is
+reported as not determined.
 """
 
 from __future__ import annotations
@@ -42,12 +47,14 @@ from scipy.optimize import least_squares
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose.fitting import fork_map
 from cosim_plugins.twin import knobs as K
+from cosim_plugins.twin.host_forces import NAME as PAPER
 from cosim_plugins.twin.host_forces import paper_forces_effect
-from cosim_plugins.twin.replay import FmuRunner, make_chunks, window_errors
+from cosim_plugins.twin.replay import FmuBank, make_chunks, window_errors
 
 SWITCHES = ("actuation_lag_on", "heading_dynamics_on")  # FMU dynamics the logs may show or not (chosen)
 SWITCHED = {"rot_drag_perp": "heading_dynamics_on"}  # knobs that act only with their FMU switch on
-SWITCH_GAIN = 0.02  # a switch turned on must lower the training rms error by this share
+SWITCH_GAIN = 0.05  # another first-stage candidate must lower the preferred one's error by this share
+SWITCH_NFEV = 3  # polish steps of each first-stage candidate (start and switches) before they are compared
 TRAIN_CHUNKS = 30  # training chunks of the FMU polish (a random sample of 1 s spans)
 POLISH_EVERY = 5  # the polish scores each window every this many rows up to the reference horizon
 MAX_NFEV = 10  # polish iterations (each: one Jacobian by finite differences, all knobs at once)
@@ -97,16 +104,30 @@ class Replay:
         self.chunks = chunks if chunks is not None else make_chunks(tl, starts, lead, int(np.max(ks)))
         self.n = int(sum(len(c.starts) for c in self.chunks))
 
+    def halves(self) -> tuple["Replay", "Replay"]:
+        """The replays of every other chunk, from the first and from the second (the first stage fits on one
+        and compares on the other)."""
+        return tuple(Replay(self.tl, None, self.lead, self.ks, self.jobs, chunks=self.chunks[i::2]) for i in (0, 1))
+
     def trajectories(self, settings: list, what: str) -> list:
-        """[[traj (rows + 1, 6) per chunk] per setting]; a setting is (fmu params, AppliedEffects or None)."""
+        """[[traj (rows + 1, 6) per chunk] per setting]; a setting is (fmu params, AppliedEffects or None).
+
+        The chunks are split into ``jobs`` groups of about equal rows, each replayed in lockstep under
+        every setting by one process (:class:`.replay.FmuBank`)."""
         tl, chunks = self.tl, self.chunks
+        groups = _groups([c.r1 - c.r0 for c in chunks], self.jobs)
+        bank = _bank()  # loaded before the fork: the workers inherit it
 
-        def one(i):
-            runner = _runner()
-            return [runner.run(chunks[i], prm, tl.dt_s, applied) for prm, applied in settings]
+        def one(g):
+            return bank.run([chunks[i] for i in groups[g]], settings, tl.dt_s)
 
-        per_chunk = fork_map(one, len(chunks), self.jobs, what)
-        return [[per_chunk[c][s] for c in range(len(chunks))] for s in range(len(settings))]
+        per_group = fork_map(one, len(groups), self.jobs, what)
+        out = [[None] * len(chunks) for _ in settings]
+        for g, res in zip(groups, per_group):
+            for s, trajs in enumerate(res):
+                for i, tr in zip(g, trajs):
+                    out[s][i] = tr
+        return out
 
     def errors(self, trajs: list, latency_s: float, tau_s: float):
         """(valid (w, H), err (w, H, 3) [mm], chunk id (w,)) of one setting's trajectories (initial states solved
@@ -120,14 +141,25 @@ class Replay:
         return np.concatenate(vs), np.concatenate(es), np.concatenate(ids)
 
 
-_RUNNER = {}
+_BANK = {}
 
 
-def _runner() -> FmuRunner:
-    """This process's FMU instance (a forked worker inherits its parent's and resets it per run)."""
-    if "fmu" not in _RUNNER:
-        _RUNNER["fmu"] = FmuRunner()
-    return _RUNNER["fmu"]
+def _bank() -> FmuBank:
+    """This process's FMU bank (a forked worker inherits its parent's)."""
+    if "fmu" not in _BANK:
+        _BANK["fmu"] = FmuBank()
+    return _BANK["fmu"]
+
+
+def _groups(rows: list, n: int) -> list:
+    """Indices of ``rows`` (rows of each chunk) in at most ``n`` groups of about equal total rows."""
+    n = max(1, min(n, len(rows)))
+    groups, load = [[] for _ in range(n)], [0] * n
+    for i in sorted(range(len(rows)), key=lambda i: -rows[i]):
+        g = int(np.argmin(load))
+        groups[g].append(i)
+        load[g] += rows[i]
+    return [sorted(g) for g in groups if g]
 
 
 def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, progress=None) -> Calibration:
@@ -158,8 +190,7 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
     start = {**(K.plant_from_host(host["params"]) if host["params"] else K.plant_defaults()),
              "latency_s": host["latency_s"]}
     start.update({q: host["params"].get(q, p.init) for e in forces for q, p in zip(e.param_names(), e.params)})
-    start.update({f"{paper.name}.Cl0": host["params"].get("Cl0", 0.0),
-                  f"{paper.name}.Fmax": host["params"].get("Fmax", 0.0)})
+    start.update({f"{paper.name}.{q}": host["params"].get(q, 0.0) for q in ("Cd0", "Cl0", "Fmax")})
     knobs = [*K.PLANT_KNOBS, K.LATENCY, *K.effect_knobs(applied_effects)]
     unknown = sorted(set(s.free or ()) - {k.name for k in knobs})
     if unknown:
@@ -180,13 +211,12 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
                          [start["latency_s"]], "mapped FMU")[0]
     say(f"uncalibrated FMU: {_fmt(uncal)}; host fit mapped onto the FMU: {_fmt(mapped_h)}")
 
-    switches = dict(host_structure)
-    values, std, info = _polish(train, knobs, start, applied_effects, s, say, switches)
-    chosen, switch_rms = _switches(train, values, applied_effects, say)
-    if chosen != switches:
-        switches = chosen
-        values, std, info = _polish(train, knobs, values, applied_effects, s, say, switches,
-                                    max_nfev=max(2, s.max_nfev // 2))
+    fmu_start = {**start, **{k: v for k, v in K.plant_defaults().items() if k in start}}
+    candidates = _candidates(start if host["params"] else None, fmu_start)
+    fit_half, check_half = train.halves()
+    first, switch_rms, trial = _choose(fit_half, check_half, knobs, candidates, applied_effects, s, say)
+    switches = candidates[first][1]
+    values, std, info = _polish(train, knobs, trial, applied_effects, s, say, switches)
     calibrated = _held_out(test, [_setting(values, applied_effects, switches)],
                            [values["latency_s"]], "calibrated twin")[0]
     say(f"calibrated twin: {_fmt(calibrated)}")
@@ -209,11 +239,11 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
         "held_out_error_mm": calibrated, "uncalibrated_error_mm": uncal, "mapped_error_mm": mapped_h,
         "host_error_mm": host["rollout_mm"], "host_model": host["origin"],
         "params": {k.name: {"value": values[k.name], "std": _finite(std[k.name]), "unit": units[k.name],
-                            "start": start[k.name], "where": k.where, "doc": k.doc} for k in knobs},
+                            "start": candidates[first][0][k.name], "where": k.where, "doc": k.doc} for k in knobs},
         "host_params": {n: {"value": v, "std": _finite(host["std"].get(n))} for n, v in host["params"].items()},
         "camera_noise_mm": dict(zip("xyz", map(float, sigma))) if sigma is not None else None,
         "heading_time_constant_s": K.heading_time_constant_s(values["rot_drag_perp"]),
-        "switches": switches, "switches_rms_mm": switch_rms,
+        "switches": switches, "first_stage": {"kept": first, "rms_mm": switch_rms},
         "not_determined": undetermined, "held_fixed": K.NOT_DETERMINED, "polish": info,
     }
     result["timing_s"] = round(time.perf_counter() - t0, 2)
@@ -309,14 +339,25 @@ def _train_replay(win, ks, s: Settings) -> Replay:
 def _setting(values: dict, effects, switches: dict | None = None) -> tuple:
     """(FMU parameters, AppliedEffects) of knob values (and the FMU's effect ``switches``)."""
     from cosim_plugins.twin.applied import AppliedEffects
-    from cosim_plugins.twin.units import host_params_from_fmu
 
     fmu = {**K.fmu_values({k: v for k, v in values.items() if k in {p.name for p in K.PLANT_KNOBS}}),
            **(switches or {})}
     eff = {q: float(values[q]) for e in effects for q in e.param_names()}
     # the effects reuse the twin's own drag, thrust and weight (a flow's w is then the flow's speed), never the
     # host fit's: the FMU's law may need other values than the host model's to give the same motion
-    return fmu, AppliedEffects(effects, eff, host_params_from_fmu(fmu))
+    return fmu, AppliedEffects(effects, eff, effects_host(fmu, values))
+
+
+def effects_host(fmu: dict, values: dict) -> dict:
+    """The host parameters (k, Cd0, Cd1, ...; uN, mm, s) the twin's effects reuse: its FMU's (``fmu``, by FMI
+    name), with the angle-of-attack drag Cd0 of ``twin_paper_forces`` when the knob ``values`` hold one."""
+    from cosim_plugins.twin.units import host_params_from_fmu
+
+    host = host_params_from_fmu(fmu)
+    cd0 = values.get(f"{PAPER}.Cd0")
+    if cd0 is not None:
+        host["Cd0"] = float(cd0)
+    return host
 
 
 def _held_out(replay: Replay, settings: list, latencies: list, what: str) -> list:
@@ -331,29 +372,55 @@ def _held_out(replay: Replay, settings: list, latencies: list, what: str) -> lis
     return out
 
 
-def _switches(train: Replay, values: dict, effects, say) -> tuple[dict, dict]:
-    """(the FMU dynamics switches the training windows favour at ``values``, the rms error [mm] of each
-    combination): every combination of :data:`SWITCHES` replayed once; the host model's structure (both off)
-    is kept unless another lowers the rms error by more than :data:`SWITCH_GAIN`."""
+def _candidates(host_start: dict | None, fmu_start: dict) -> dict:
+    """{name: (start values, FMU switches)} the first stage compares, the preferred one first: the host fit
+    mapped onto the FMU under every combination of :data:`SWITCHES` (both off, the host model's structure,
+    preferred) and the FMU's own defaults with its own dynamics (both on); without a host fit, the FMU's
+    defaults under every combination (its own dynamics preferred). Effect knobs start at the host fit's
+    values in both."""
     import itertools
 
     combos = [dict(zip(SWITCHES, bits)) for bits in itertools.product((False, True), repeat=len(SWITCHES))]
-    trajs = train.trajectories([_setting(values, effects, c) for c in combos], "FMU switches")
-    rms = []
-    for tr in trajs:
-        valid, err, _ = train.errors(tr, values["latency_s"],
-                                     _tau(K.fmu_values({"drag_axial": values["drag_axial"]})))
-        rms.append(float(np.sqrt(np.mean(err[valid] ** 2))) if valid.any() else np.inf)
-    best = int(np.argmin(rms))
-    if not rms[best] < (1.0 - SWITCH_GAIN) * rms[0]:
-        best = 0
-    table = {",".join(f"{k}={v}" for k, v in c.items()): r for c, r in zip(combos, rms)}
-    say("FMU switches: " + "; ".join(f"{k}: {v:.3f} mm" for k, v in table.items()) + f" -> {list(table)[best]}")
-    return combos[best], table
+    label = {(False, False): "host structure", (True, True): "FMU dynamics", (True, False): "coil lag only",
+             (False, True): "heading dynamics only"}
+    if host_start is None:
+        return {f"FMU defaults, {label[tuple(c.values())]}": (fmu_start, c) for c in combos[::-1]}
+    out = {f"host fit, {label[tuple(c.values())]}": (host_start, c) for c in combos}
+    out["FMU defaults, FMU dynamics"] = (fmu_start, combos[-1])
+    return out
+
+
+def _choose(fit: Replay, check: Replay, knobs, candidates: dict, effects, s: Settings,
+            say) -> tuple[str, dict, dict]:
+    """(the candidate kept, the rms error [mm] of each on ``check``, its briefly polished values): each candidate
+    (start values and FMU switches, :func:`_candidates`) is polished :data:`SWITCH_NFEV` steps on ``fit`` (half
+    the training chunks) and scored on ``check`` (the other half, which it was not fitted to); the first
+    (preferred) one is kept unless another lowers its error by more than :data:`SWITCH_GAIN`. Brief polishes,
+    not the starts, are compared: a switch turned on needs its own values (the coils' lag delays the thrust: a
+    drag fitted without it is off), and a start far from the logs' values (the host model's drag absorbs what
+    its law lacks) needs steps to show where it leads; they are compared on chunks they were not fitted to, as
+    a switch's extra freedom lowers the error it was fitted on whether the logs' plant has it or not."""
+    trials, settings = {}, []
+    for name, (start, switches) in candidates.items():
+        trials[name], _, _ = _polish(fit, knobs, start, effects, s, lambda m: None, switches,
+                                     max_nfev=SWITCH_NFEV, with_std=False)
+        settings.append(_setting(trials[name], effects, switches))
+    table = {}
+    for name, trajs in zip(candidates, check.trajectories(settings, "first stage")):
+        v = trials[name]
+        valid, err, _ = check.errors(trajs, v["latency_s"], _tau(K.fmu_values({"drag_axial": v["drag_axial"]})))
+        table[name] = float(np.sqrt(np.mean(err[valid] ** 2))) if valid.any() else float("inf")
+    first = next(iter(candidates))
+    best = min(table, key=table.get)
+    if not table[best] < (1.0 - SWITCH_GAIN) * table[first]:
+        best = first
+    say(f"first stage ({SWITCH_NFEV} polish steps each on {fit.n} training windows, scored on the other "
+        f"{check.n}): " + "; ".join(f"{k}: {v:.3f} mm" for k, v in table.items()) + f" -> {best}")
+    return best, table, trials[best]
 
 
 def _polish(train: Replay, knobs, start: dict, effects, s: Settings, say, switches: dict,
-            max_nfev: int | None = None):
+            max_nfev: int | None = None, with_std: bool = True):
     """(values, std, info): every knob refined on the FMU's replay of the training chunks (see the module doc)."""
     held = {k.name: start[k.name] for k in knobs if (s.free is not None and k.name not in s.free)
             or (k.name in SWITCHED and not switches[SWITCHED[k.name]])}
@@ -415,8 +482,12 @@ def _polish(train: Replay, knobs, start: dict, effects, s: Settings, say, switch
                         ftol=1e-4, xtol=1e-4)
     x = sol.x
     r, ids = batch([x])[0]
-    J = jac(x)
-    std_x = _cluster_std(J, r, ids)
+    if not with_std:
+        std_x = np.full(len(x), np.nan)
+    else:
+        last = state["jac"]  # the solver's Jacobian at its last accepted point, which is the solution
+        J = last[1] if last is not None and np.array_equal(last[0], x) else jac(x)
+        std_x = _cluster_std(J, r, ids)
     values = values_of(x)
     std = {n: float("nan") for n in held}  # held, not fitted
     for k, v, sx in zip(knobs, x, std_x):
@@ -433,21 +504,23 @@ def _polish(train: Replay, knobs, start: dict, effects, s: Settings, say, switch
 
 
 def _cluster_std(J: np.ndarray, r: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """Standard errors of x from the Jacobian J (m, p) and residuals r (m,), robust to correlation within each
-    cluster ``ids`` (m,): (J'J)^-1 (sum_c J_c' r_c r_c' J_c) (J'J)^-1, with the small-sample factor C / (C - 1)."""
+    """Standard errors of x from the Jacobian J (m, p) and residuals r (m,), robust to any correlation of the
+    residuals within each cluster ``ids`` (m,) (a chunk: its windows overlap and share their rows' errors):
+    the cluster jackknife (CR3), ((C - 1) / C) sum_c (d_c - mean d)(d_c - mean d)' with d_c the change of x
+    when cluster c is left out, (J'J - J_c'J_c)^-1 J_c' r_c. With the polish's 30 chunks and about ten knobs
+    the plain cluster sandwich (J'J)^-1 (sum_c J_c' r_c r_c' J_c) (J'J)^-1 is too small (95 % intervals cover
+    about 85 % in a simulation of this shape; the jackknife's about 94 %)."""
     A = J.T @ J
-    try:
-        Ainv = np.linalg.pinv(A, rcond=1e-12)
-    except np.linalg.LinAlgError:
-        return np.full(J.shape[1], np.inf)
     clusters = np.unique(ids)
-    meat = np.zeros_like(A)
-    for c in clusters:
-        g = J[ids == c].T @ r[ids == c]
-        meat += np.outer(g, g)
     n = len(clusters)
-    cov = Ainv @ meat @ Ainv * (n / max(n - 1, 1))
-    out = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    if n < 2:
+        return np.full(J.shape[1], np.inf)
+    d = np.empty((n, J.shape[1]))
+    for i, c in enumerate(clusters):
+        Jc = J[ids == c]
+        d[i] = np.linalg.lstsq(A - Jc.T @ Jc, Jc.T @ r[ids == c], rcond=1e-12)[0]
+    d -= d.mean(axis=0)
+    out = np.sqrt((n - 1) / n * np.sum(d * d, axis=0))
     out[np.diag(A) <= 1e-12 * max(float(np.max(np.diag(A))), 1e-300)] = np.inf  # a knob the logs do not move
     return out
 

@@ -82,10 +82,11 @@ def fmu_values(values: dict) -> dict:
 
 
 def plant_from_host(host: dict) -> dict:
-    """Start values of the plant knobs from a physical model's k, Cd0, Cd1, Fvs (uN, mm, s, Hz).
+    """Start values of the plant knobs from a physical model's k, Cd1, Fvs (uN, mm, s, Hz).
 
     prop_coeff = k / 2 pi (a thrust k u [uN] at u = omega / 2 pi), drag_axial = Cd1, net weight = -Fvs,
-    anisotropy_ratio = 1 + Cd0 / Cd1 (broadside, alpha = 90 deg: Cd0 + Cd1 = ratio Cd1); the heading
+    anisotropy_ratio = 1 (an isotropic Cd1 drag: the paper's Cd0 sin(alpha) drag is the effect
+    ``twin_paper_forces``, :mod:`.host_forces`, which starts at the host's Cd0); the heading
     response keeps the FMU's default and the gradient force starts at 0 (the host model has neither).
     """
     d = fmu_defaults()
@@ -94,7 +95,7 @@ def plant_from_host(host: dict) -> dict:
     return {
         "prop_coeff": float(np.clip(k * N_PER_UN * HZ_PER_RAD_S, 1e-10, 1e-5)),
         "drag_axial": float(np.clip(cd1 * N_PER_UN_PER_MM, 1e-7, 1e-2)),
-        "anisotropy_ratio": float(np.clip(1.0 + max(float(host.get("Cd0", 0.0)), 0.0) / cd1, 0.3, 10.0)),
+        "anisotropy_ratio": 1.0,
         "net_weight": float(np.clip(-float(host["Fvs"]) * N_PER_UN, -1e-5, 1e-5)),
         "rot_drag_perp": d["rot_drag_perp"],
         "gradient_force_scale": 0.0,

@@ -23,8 +23,10 @@ the windows' mm, mm/s, Hz, s.
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -38,6 +40,8 @@ _INPUTS = (*(f"V_amp_{i}" for i in range(1, 7)), *(f"V_phase_{i}" for i in range
            *(f"F_ext_{a}" for a in _AXES), *(f"F_ext_dp_{a}{b}" for a in _AXES for b in _AXES),
            *(f"F_ext_dv_{a}{b}" for a in _AXES for b in _AXES))
 _OUTPUTS = ("p_x", "p_y", "p_z", "v_x", "v_y", "v_z")
+_FMI_WARNING = 1  # fmi2Status: OK 0, Warning 1, Discard 2, Error 3, Fatal 4
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
 
 @dataclass
@@ -121,8 +125,15 @@ def _drive(omega: np.ndarray, dt: float, driver_params: dict | None) -> np.ndarr
     return out
 
 
-class FmuRunner:
-    """One instance of the plant FMU, reset for every run (see the module docstring)."""
+class FmuBank:
+    """Instances of the plant FMU that replay many chunks under many settings in lockstep.
+
+    One FMU is loaded; :meth:`run` takes as many instances as (setting, chunk) pairs (kept
+    and reset between calls) and steps them row by row together, so each setting's force
+    effects are evaluated once per row for all its chunks (one batched call instead of one
+    per chunk and row: the effects, not the FMU, dominate a row's cost otherwise). The FMI
+    calls of the stepping loop go straight to the FMU's library with preallocated buffers.
+    """
 
     def __init__(self, fmu_path=None):
         from fmpy import extract, read_model_description
@@ -135,70 +146,106 @@ class FmuRunner:
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.types = {v.name: v.type for v in md.modelVariables}
         self._dir = extract(path)
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._dir, modelIdentifier=md.coSimulation.modelIdentifier,
-                             instanceName="twin_replay")
-        self.fmu.instantiate(loggingOn=False)
-        self._in = [self.vr[n] for n in _INPUTS]
-        self._out = [self.vr[n] for n in _OUTPUTS]
-        self._fresh = True
+        self._master = FMU2Slave(guid=md.guid, unzipDirectory=self._dir,
+                                 modelIdentifier=md.coSimulation.modelIdentifier, instanceName="twin_replay")
+        self._master.instantiate(loggingOn=False)
+        self._dll = self._master.dll
+        self._components = [self._master.component]
+        self._in = (ctypes.c_uint * len(_INPUTS))(*(self.vr[n] for n in _INPUTS))
+        self._out = (ctypes.c_uint * len(_OUTPUTS))(*(self.vr[n] for n in _OUTPUTS))
 
-    def run(self, chunk: Chunk, params: dict, dt: float, applied=None) -> np.ndarray:
-        """(r1 - r0 + 1, 6) the FMU's [p (mm), v (mm/s)] at rows r0..r1 with FMU ``params`` (by FMI name)."""
-        fmu = self.fmu
-        if not self._fresh:
-            fmu.reset()
-        self._fresh = False
+    def _instances(self, n: int) -> list:
+        """n FMU instances (more instantiated as needed)."""
+        m = self._master
+        while len(self._components) < n:
+            c = m.fmi2Instantiate(f"twin_replay_{len(self._components)}".encode(), 1, m.guid.encode(),
+                                  Path(m.unzipDirectory, "resources").as_uri().encode(), ctypes.byref(m.callbacks),
+                                  0, 0)
+            if not c:
+                raise RuntimeError(f"the plant FMU refused a {len(self._components) + 1}th instance")
+            self._components.append(c)
+        return self._components[:n]
+
+    def _start(self, comp, params: dict, chunk: Chunk) -> bool:
+        """Reset ``comp`` and initialise it with FMU ``params`` at the chunk's start; False on an FMI error."""
+        dll = self._dll
         values = {**params, "p0_x": chunk.p0_m[0], "p0_y": chunk.p0_m[1], "p0_z": chunk.p0_m[2],
                   "axis0_x": chunk.axis0[0], "axis0_y": chunk.axis0[1], "axis0_z": chunk.axis0[2]}
-        reals = {k: float(v) for k, v in values.items() if self.types[k] == "Real"}
-        bools = {k: bool(v) for k, v in values.items() if self.types[k] == "Boolean"}
-        try:
-            fmu.setupExperiment(startTime=0.0)
-            fmu.setReal([self.vr[k] for k in reals], list(reals.values()))
-            if bools:
-                fmu.setBoolean([self.vr[k] for k in bools], list(bools.values()))
-            fmu.enterInitializationMode()
-            fmu.exitInitializationMode()
-            n = chunk.r1 - chunk.r0
-            out = np.empty((n + 1, 6))
-            out[0] = fmu.getReal(self._out)
-            buf = np.zeros(len(_INPUTS))
-            for j in range(n):
-                buf[:13] = chunk.drive[j]
-                if applied is not None:
-                    f, dfdp, dfdv = applied.force_si(out[j, :3], out[j, 3:], chunk.omega[j])
-                    buf[13:16], buf[16:25], buf[25:34] = f, dfdp.reshape(9), dfdv.reshape(9)
-                fmu.setReal(self._in, buf.tolist())
-                fmu.doStep(currentCommunicationPoint=j * dt, communicationStepSize=dt)
-                out[j + 1] = fmu.getReal(self._out)
-        except Exception as exc:  # fmpy raises on an error status: absurd parameters in a fit's trial
-            self._fresh = False
-            return np.full((chunk.r1 - chunk.r0 + 1, 6), np.nan) if _is_fmi_error(exc) else _reraise(exc)
-        return out * 1e3
+        reals = {self.vr[k]: float(v) for k, v in values.items() if self.types[k] == "Real"}
+        bools = {self.vr[k]: int(bool(v)) for k, v in values.items() if self.types[k] == "Boolean"}
+        status = dll.fmi2Reset(comp)
+        status = max(status, dll.fmi2SetupExperiment(comp, 0, 0.0, 0.0, 0, 0.0))
+        status = max(status, dll.fmi2SetReal(comp, (ctypes.c_uint * len(reals))(*reals), len(reals),
+                                             (ctypes.c_double * len(reals))(*reals.values())))
+        if bools:
+            status = max(status, dll.fmi2SetBoolean(comp, (ctypes.c_uint * len(bools))(*bools), len(bools),
+                                                    (ctypes.c_int * len(bools))(*bools.values())))
+        status = max(status, dll.fmi2EnterInitializationMode(comp))
+        status = max(status, dll.fmi2ExitInitializationMode(comp))
+        return status <= _FMI_WARNING
+
+    def run(self, chunks: list, settings: list, dt: float) -> list:
+        """[[traj (r1 - r0 + 1, 6) per chunk] per setting]: the FMU's [p (mm), v (mm/s)] at rows r0..r1 of
+        each chunk under each setting (FMU parameters by FMI name, AppliedEffects or None); all NaN for a
+        run the FMU refused (absurd parameters in a fit's trial)."""
+        n_c, n_s = len(chunks), len(settings)
+        comps = self._instances(n_c * n_s)
+        lengths = np.array([c.r1 - c.r0 for c in chunks])
+        n_max = int(lengths.max()) if n_c else 0
+        drive = np.zeros((n_c, n_max, 13))
+        omega = np.zeros((n_c, n_max, 3))
+        for i, c in enumerate(chunks):
+            drive[i, :lengths[i]], omega[i, :lengths[i]] = c.drive, c.omega
+        n_in, n_out = len(_INPUTS), len(_OUTPUTS)
+        buf = np.zeros((n_s, n_c, n_in))
+        cur = np.zeros((n_s, n_c, n_out))
+        in_ptr = [[buf[s, i].ctypes.data_as(_DOUBLE_P) for i in range(n_c)] for s in range(n_s)]
+        out_ptr = [[cur[s, i].ctypes.data_as(_DOUBLE_P) for i in range(n_c)] for s in range(n_s)]
+        traj = np.full((n_s, n_c, n_max + 1, n_out), np.nan)
+        alive = np.zeros((n_s, n_c), dtype=bool)
+        dll, vin, vout = self._dll, self._in, self._out
+        set_real, get_real, do_step = dll.fmi2SetReal, dll.fmi2GetReal, dll.fmi2DoStep
+        for s, (params, _) in enumerate(settings):
+            for i, c in enumerate(chunks):
+                comp = comps[s * n_c + i]
+                alive[s, i] = self._start(comp, params, c) and get_real(comp, vout, n_out, out_ptr[s][i]) <= 1
+        traj[:, :, 0] = cur
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            for j in range(n_max):
+                going = lengths > j  # (n_c,)
+                buf[:, :, :13] = drive[:, j]
+                for s, (_, applied) in enumerate(settings):
+                    if applied is not None:
+                        f, dfdp, dfdv = applied.force_si_batch(cur[s, :, :3], cur[s, :, 3:], omega[:, j])
+                        buf[s, :, 13:16], buf[s, :, 16:25], buf[s, :, 25:34] = (f, dfdp.reshape(n_c, 9),
+                                                                                 dfdv.reshape(n_c, 9))
+                    for i in np.flatnonzero(going & alive[s]):
+                        comp = comps[s * n_c + i]
+                        if (set_real(comp, vin, n_in, in_ptr[s][i]) > _FMI_WARNING
+                                or do_step(comp, j * dt, dt, 1) > _FMI_WARNING
+                                or get_real(comp, vout, n_out, out_ptr[s][i]) > _FMI_WARNING):
+                            alive[s, i] = False
+                traj[:, :, j + 1] = cur
+        traj[~alive] = np.nan
+        return [[traj[s, i, :lengths[i] + 1] * 1e3 for i in range(n_c)] for s in range(n_s)]
 
     def close(self) -> None:
+        """Free every instance and the library."""
+        for comp in self._components[1:]:
+            self._dll.fmi2FreeInstance(comp)
+        self._components = self._components[:1]
         try:
-            self.fmu.terminate()
-            self.fmu.freeInstance()
+            self._master.terminate()
+            self._master.freeInstance()
         except Exception:  # noqa: BLE001  (already failed: nothing to free)
             pass
-
-
-def _is_fmi_error(exc) -> bool:
-    from fmpy.fmi1 import FMICallException
-
-    return isinstance(exc, FMICallException)
-
-
-def _reraise(exc):
-    raise exc
 
 
 def window_errors(tl, chunk: Chunk, traj_mm: np.ndarray, lead: int, ks, latency_s: float = 0.0,
                   tau_s: float | None = None):
     """(valid (w, H) bool, err (w, H, 3) [mm]): each window's error ``ks`` (H,) rows after its lead-in.
 
-    ``traj_mm`` (r1 - r0 + 1, >= 3): the replayed positions [mm] at rows r0..r1 (:meth:`FmuRunner.run`).
+    ``traj_mm`` (r1 - r0 + 1, >= 3): the replayed positions [mm] at rows r0..r1 (:meth:`FmuBank.run`).
     ``tau_s``: the plant's velocity time constant [s]; given, each window's initial velocity is solved on
     its lead-in too (a velocity offset dv at the window's start moves the positions by
     dv tau (1 - exp(-t / tau)) as the drag damps it), as diagnose solves a host model's initial state;
@@ -206,38 +253,44 @@ def window_errors(tl, chunk: Chunk, traj_mm: np.ndarray, lead: int, ks, latency_
     """
     ks = np.asarray(ks, dtype=np.int64)
     p_rep = _delayed(traj_mm[:, :3], latency_s / tl.dt_s)
-    if tau_s is not None and tau_s > 0:
-        t_rel = np.arange(lead + int(ks.max()) + 1) * tl.dt_s
-        shape = tau_s * -np.expm1(-t_rel / tau_s)  # (L + 1,) [s]: position per unit initial velocity offset
-    else:
-        shape = None
-    w = len(chunk.starts)
+    n_rep = len(p_rep)
+    starts = np.asarray(chunk.starts, dtype=np.int64)
+    w = len(starts)
     valid = np.zeros((w, len(ks)), dtype=bool)
     err = np.full((w, len(ks), 3), np.nan)
-    for i, s in enumerate(chunk.starts):
-        s = int(s)
-        fit = np.arange(s, s + lead + 1)
-        meas = tl.p[fit]
-        use = np.all(np.isfinite(meas), axis=1) & (fit - chunk.r0 < len(p_rep))
-        if not use.any():
-            continue
-        resid = meas[use] - p_rep[fit[use] - chunk.r0]  # (m, 3)
-        rows = s + lead + ks
-        if shape is not None and use.sum() >= 3:
-            A = np.stack([np.ones(int(use.sum())), shape[fit[use] - s]], axis=1)  # (m, 2)
-            coef = np.linalg.lstsq(A, resid, rcond=None)[0]  # (2, 3): position and velocity offsets
-            offset = coef[0] + shape[np.minimum(rows - s, len(shape) - 1)][:, None] * coef[1]  # (H, 3)
-        else:
-            offset = np.broadcast_to(np.mean(resid, axis=0), (len(rows), 3))
-        inside = rows - chunk.r0 < len(p_rep)
-        ok = inside & (tl.run[s] >= lead + ks) & np.all(np.isfinite(tl.p[np.minimum(rows, tl.n - 1)]), axis=1)
-        if not ok.any():
-            continue
-        e = p_rep[rows[ok] - chunk.r0] + offset[ok] - tl.p[rows[ok]]
-        bad = ~(np.linalg.norm(e, axis=1) <= DIVERGED_MM)
-        e[bad] = DIVERGED_MM / math.sqrt(3.0)
-        valid[i, ok] = True
-        err[i, ok] = e
+    if w == 0:
+        return valid, err
+    lag = np.arange(lead + 1)
+    fit = starts[:, None] + lag  # (w, L + 1) lead-in rows
+    meas = tl.p[np.minimum(fit, tl.n - 1)]  # (w, L + 1, 3)
+    inside = fit - chunk.r0 < n_rep
+    use = np.all(np.isfinite(meas), axis=2) & inside & (fit < tl.n)
+    resid = np.where(use[..., None], meas - p_rep[np.clip(fit - chunk.r0, 0, n_rep - 1)], 0.0)  # (w, L + 1, 3)
+    m = use.sum(axis=1)  # (w,) measured lead-in rows
+    wt = use.astype(float)
+    offset0 = resid.sum(axis=1) / np.maximum(m, 1)[:, None]  # (w, 3): the position offset alone
+    offset = np.broadcast_to(offset0[:, None], (w, len(ks), 3)).copy()  # (w, H, 3)
+    if tau_s is not None and tau_s > 0:
+        t_rel = np.arange(lead + int(ks.max()) + 1) * tl.dt_s
+        shape = tau_s * -np.expm1(-t_rel / tau_s)  # (L + 1 + k_max,) [s]: position per unit initial velocity offset
+        x = shape[lag]
+        s0, s1, s2 = m.astype(float), wt @ x, wt @ (x * x)  # (w,) sums of the normal equations
+        b0, b1 = resid.sum(axis=1), np.einsum("wl,l,wlc->wc", wt, x, resid)  # (w, 3)
+        det = s0 * s2 - s1 * s1
+        two = (m >= 3) & (det > 1e-12 * np.maximum(s0 * s2, 1e-300))  # position and velocity offsets solvable
+        d = np.where(two, det, 1.0)[:, None]
+        c0, c1 = (s2[:, None] * b0 - s1[:, None] * b1) / d, (s0[:, None] * b1 - s1[:, None] * b0) / d
+        at = shape[np.minimum(lead + ks, len(shape) - 1)]  # (H,)
+        offset[two] = c0[two][:, None] + at[None, :, None] * c1[two][:, None]
+    rows = starts[:, None] + lead + ks  # (w, H)
+    rows_c = np.minimum(rows, tl.n - 1)
+    ok = ((rows - chunk.r0 < n_rep) & (tl.run[starts][:, None] >= lead + ks)
+          & np.all(np.isfinite(tl.p[rows_c]), axis=2) & (m > 0)[:, None])
+    e = p_rep[np.clip(rows - chunk.r0, 0, n_rep - 1)] + offset - tl.p[rows_c]  # (w, H, 3)
+    bad = ~(np.linalg.norm(e, axis=2) <= DIVERGED_MM)
+    e[bad] = DIVERGED_MM / math.sqrt(3.0)
+    valid[ok] = True
+    err[ok] = e[ok]
     return valid, err
 
 

@@ -114,6 +114,8 @@ def write_twin(cal, out: Path, scenario_path=None) -> Path:
         *[f"        {x}" for x in eff_lines],
         "      # the effects reuse the twin's own drag, thrust and net weight (its plant's values)",
         f"      plant_params: {_flow({k: float(_num(fmu[k])) for k in ('prop_coeff', 'drag_axial', 'volume')})}",
+        *([f"      host: {_flow({'Cd0': float(_num(values[PAPER + '.Cd0']))})}   # the paper's angle-of-attack "
+           "drag (twin_paper_forces.Cd0), which a flow's drag includes"] if paper else []),
         "      coupling: linear",
         "    inputs: {position: plant.position, velocity: plant.velocity, omega: "
         + _omega_source(comps) + "}"

@@ -80,3 +80,36 @@ def test_a_transform_without_a_twin_counterpart_and_effects_with_a_model_are_ref
 def test_an_unknown_free_parameter_is_named(fmu_log):
     with pytest.raises(UserError, match="free: unknown parameter.*drag_sideways"):
         calibrate([fmu_log], settings=Settings(host_fit=False, free=["drag_sideways"]))
+
+
+def test_a_saved_model_starts_the_calibration_and_its_effects_reach_twin_yaml(fmu_log, tmp_path, use_fmu,
+                                                                               monkeypatch):
+    """cosim twin calibrate --model M.npz end to end: the model's effect (a flow the FMU's log does not have)
+    starts at the model's value, is calibrated, and the written twin.yaml applies it in cosim run."""
+    import functools
+
+    from cosim_plugins.identify.effect import resolve
+    from cosim_plugins.models.physical import PhysicalModel
+    from cosim_plugins.twin import calibrate as calmod
+
+    model = PhysicalModel.from_params({"k": 0.2, "Cd1": 0.12, "Fvs": -0.3, "background_flow.w_x": 0.8},
+                                      terms=resolve(["background_flow"])).save(tmp_path / "m.npz")
+    # a short polish: the test checks the wiring, not the figures
+    monkeypatch.setattr(calmod, "Settings", functools.partial(calmod.Settings, train_chunks=6, max_nfev=2))
+    monkeypatch.setattr(calmod, "SWITCH_NFEV", 1)
+    out = tmp_path / "twin"
+    assert main(["twin", "calibrate", str(fmu_log), "--model", str(model), "--jobs", "1", "--out", str(out)]) == 0
+    r = json.loads((out / "twin.json").read_text())
+    assert r["effects"] == ["background_flow"]
+    assert r["host_model"] == f"model file {model}"
+    flow = r["params"]["background_flow.w_x"]
+    assert flow["start"] == pytest.approx(0.8)  # the model's value started the fit
+    assert flow["value"] != pytest.approx(0.8)  # and the polish moved it
+    assert r["params"]["drag_axial"]["start"] == pytest.approx(1.2e-4)  # the model's Cd1 [uN s/mm] in N s/m
+    text = (out / "twin.yaml").read_text()
+    assert "effects: [background_flow, twin_paper_forces]" in text
+    written = float(f"{flow['value']:.6g}")
+    assert f"w_x: {written!r}" in text
+    assert main(["run", str(out / "twin.yaml"), "--out", str(tmp_path / "run"), "--quiet", "--set",
+                 "duration_s=1"]) == 0
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["status"] == "ok"
