@@ -58,7 +58,7 @@ def _child(args) -> int:
     t0 = time.perf_counter()
     diag = run(files, settings=Settings(jobs=args.jobs))
     with tempfile.TemporaryDirectory() as tmp:
-        write_outputs(diag, Path(tmp) / "diag")
+        write_outputs(diag, Path(tmp) / "diag", args.jobs)
     wall = time.perf_counter() - t0
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     workers = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0

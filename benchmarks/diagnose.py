@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         diag = run(files, settings=Settings(jobs=args.jobs))
-        write_outputs(diag, Path(tmp) / "diag")
+        write_outputs(diag, Path(tmp) / "diag", args.jobs)
         wall = time.perf_counter() - t0
     r = diag.result
     best = r["ranking"][0]

@@ -86,7 +86,7 @@ def cmd_diagnose(args) -> int:
                         t_start=_t_start(args.t_start, len(args.logs)))
     diag = run(args.logs, args.validate, settings, progress=_progress)
     saved = save_model(diag.added_model.savable(), args.save_model) if args.save_model else None
-    files = write_outputs(diag, out)
+    files = write_outputs(diag, out, settings.jobs)
     print(format_diagnosis(diag.result))
     print(f"wrote {len(files)} files to {out} (report.md, diagnosis.json, diagnosis.rrd"
           + (", experiment.yaml, experiment_excitation.csv" if diag.experiment is not None else "") + ")")

@@ -65,13 +65,14 @@ class Fitter:
         return fit, fitted.identifiable
 
     def with_each(self, before: Fit, effects, quick: bool = False) -> list:
-        """[:meth:`with_effects` (``before``, [effect]) for each effect], in order, over ``s.jobs`` forked
-        processes (they inherit this fitter's data; each returns its fit). One process when ``jobs`` is 1, the
-        platform cannot fork, or a fit's effects (``before``'s and the new one) cannot be sent between processes
-        (then each fit runs here)."""
+        """[:meth:`with_effects` (``before``, [effect]) for each effect (None: ``before`` refitted with nothing
+        added)], in order, over ``s.jobs`` forked processes (they inherit this fitter's data; each returns its
+        fit). One process when ``jobs`` is 1, the platform cannot fork, or a fit's effects (``before``'s and the
+        new one) cannot be sent between processes (then each fit runs here)."""
         jobs = self.s.jobs if picklable([*before.model.effects, *effects]) else 1
-        return fork_map(lambda i: self.with_effects(before, [effects[i]], quick=quick), len(effects), jobs,
-                        "quick fits" if quick else "candidate fits")
+        return fork_map(lambda i: self.with_effects(before, [e for e in effects[i:i + 1] if e is not None],
+                                                    quick=quick),
+                        len(effects), jobs, "quick fits" if quick else "candidate fits")
 
     def refit(self, jm) -> Fit:
         """``jm`` refitted from its own solution (every parameter free, the same budget as a candidate's fit)."""

@@ -27,15 +27,16 @@ from cosim_plugins.identify.fit import json_default
 MAX_LOG_PLOTS = 6
 
 
-def write_outputs(diag, out_dir) -> list[Path]:
-    """Write every output file of ``diag`` (a :class:`~cosim_plugins.diagnose.pipeline.Diagnosis`) into ``out_dir``."""
+def write_outputs(diag, out_dir, jobs: int = 1) -> list[Path]:
+    """Write every output file of ``diag`` (a :class:`~cosim_plugins.diagnose.pipeline.Diagnosis`) into ``out_dir``,
+    the plots drawn over ``jobs`` processes."""
     from cosim_plugins.diagnose.recording import write_recording
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = [out / "diagnosis.json"]
     files[0].write_text(json.dumps(diag.result, indent=2, default=json_default) + "\n")
-    files += write_plots(diag, out)
+    files += write_plots(diag, out, jobs)
     if diag.discovered_source:
         files.append(out / diag.result["discovered"]["file"])
         files[-1].write_text(diag.discovered_source)
@@ -49,22 +50,29 @@ def write_outputs(diag, out_dir) -> list[Path]:
 # ---------------------------------------------------------------- plots
 
 
-def write_plots(diag, out: Path) -> list[Path]:
-    """Write the diagnosis' PNG plots into ``out``; returns their paths."""
+def write_plots(diag, out: Path, jobs: int = 1) -> list[Path]:
+    """Write the diagnosis' PNG plots into ``out``, over ``jobs`` forked processes (rendering a PNG is most of
+    the outputs' time); returns the paths of those drawn, in order."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    files = []
-    for name, draw in (("error_over_time.png", _plot_time), ("error_by_condition.png", _plot_features),
-                       ("ranking.png", _plot_ranking), ("before_after.png", _plot_before_after)):
-        fig = draw(diag, plt)
-        if fig is not None:
-            fig.savefig(out / name, dpi=90)
-            plt.close(fig)
-            files.append(out / name)
-    return files
+    from cosim_plugins.diagnose.fitting import fork_map
+
+    plots = (("error_over_time.png", _plot_time), ("error_by_condition.png", _plot_features),
+             ("ranking.png", _plot_ranking), ("before_after.png", _plot_before_after))
+
+    def draw(i: int) -> Path | None:
+        name, plot = plots[i]
+        fig = plot(diag, plt)
+        if fig is None:
+            return None
+        fig.savefig(out / name, dpi=90)
+        plt.close(fig)
+        return out / name
+
+    return [path for path in fork_map(draw, len(plots), jobs, "plots") if path is not None]
 
 
 def target_times(diag) -> tuple[np.ndarray, np.ndarray]:

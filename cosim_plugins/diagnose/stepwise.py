@@ -103,6 +103,10 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
     say = say or (lambda msg: None)
     current, steps, rounds, remaining = start, [], [], list(candidates)
     by_name = {e.name: e for e in candidates}
+    # a candidate whose parameters did not change the predictions in the first round acts where the logs never
+    # go (a spin rate never reached, a wall never neared): no effect added changes that, so it is not refitted
+    # in later rounds, its entry carried
+    unseen = {e["effect"]: e for e in first[0] if not e["identifiable"]}
     stop = "max_effects"
     for round_no in range(1, max_effects + 1):
         if not remaining:
@@ -115,7 +119,9 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
             entries, fits = first
         else:
             say(f"round {round_no}: {len(remaining)} candidates given {', '.join(s.effects[0] for s in steps)}")
-            entries, fits = rank(fitter, current, remaining, key, say, screen=True)
+            entries, fits = rank(fitter, current, [e for e in remaining if e.name not in unseen], key, say,
+                                 screen=True)
+            entries += [unseen[e.name] for e in remaining if e.name in unseen]
         rounds.append(entries)
         best = next((e for e in entries if e["identifiable"]), None)
         if best is not None and passes(best, current.error(key), floor.get(key), key):
@@ -194,8 +200,9 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
     entries, fits = {}, {}
     todo = list(effects)
     if screen and len(effects) > SCREEN_KEEP:
-        same_way, _ = fitter.with_effects(before, [], quick=True)  # the quick fits' reference
-        for effect, (fit, identifiable) in zip(effects, fitter.with_each(before, effects, quick=True)):
+        # the quick fits' reference (no effect added) first, in the same processes as the candidates'
+        (same_way, _), *quick = fitter.with_each(before, [None, *effects], quick=True)
+        for effect, (fit, identifiable) in zip(effects, quick):
             entries[effect.name] = {**fitter.entry(effect, fit, identifiable, same_way), "screened": True}
             fits[effect.name] = fit
         hopeful = sorted((e for e in entries.values() if e["identifiable"] and e["reduction"] >= SCREEN_MIN),

@@ -130,8 +130,8 @@ class _Quick:
         lost = self.POLISH if quick else 0.0
         return self._fit(before.error("1.0") + lost - sum(self.gain[e.name] for e in effects)), True
 
-    def with_each(self, before, effects, quick=False):
-        return [self.with_effects(before, [e], quick) for e in effects]
+    def with_each(self, before, effects, quick=False):  # None: before refitted with nothing added
+        return [self.with_effects(before, [e] if e is not None else [], quick) for e in effects]
 
     def entry(self, effect, fit, identifiable, before):
         err = fit.error("1.0")
