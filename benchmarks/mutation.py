@@ -102,7 +102,7 @@ EQUIVALENT: dict[str, str] = {
         "localisation without clues read as None for []: both are false, 'none stand out' either way",
     'cosim_plugins.diagnose.verdict.x__clues_text__mutmut_5':
         "localisation without clues read as None (get without a default) for []: both false, the same words",
-    'cosim_plugins.diagnose.verdict.x__verdict__mutmut_61':
+    'cosim_plugins.diagnose.verdict.x__verdict__mutmut_72':
         "_steps_text called without steps too: with none chosen none is dropped, and it returns ''",
     'cosim_plugins.diagnose.verdict.x_fit_notes__mutmut_35':
         'a missing condition number read as 1.0 for 0.0: both are far below NOTE_CONDITION (1e8)',

@@ -479,3 +479,22 @@ def test_four_windows_valid_in_both_are_enough_for_a_t():
 def test_a_quarter_of_the_excess_exactly_is_enough():
     """1.0 -> 0.75 mm over a zero floor removes 0.25 of the excess exactly."""
     assert passes({"reduction": 0.25, "t_stat": 5.0, "rollout_mm": {K: 0.75}}, 1.0, 0.0, K)
+
+
+def test_the_effects_given_the_discovered_form_in_words_step_by_step():
+    """Word for word: a named effect then a look-alike group, without a noise floor (no share), and a drop that
+    goes below the floor (its share capped at 100 %)."""
+    from cosim_plugins.diagnose.verdict import _given_text
+
+    r = result(1.0, None)
+    r["stepwise"]["given_discovered"] = {"steps": [step("actuation_lag", 0.5, 0.25, t=7.5),
+                                                   step("heading_lag", 0.3, 0.2, group=("sensor_latency",))]}
+    assert _given_text(r, K) == (
+        " Given the discovered form, actuation_lag explains part of what is left: refitted with it, the held-out "
+        "error at 1.0 s falls from 0.50 to 0.25 mm (50%; t = 7.5). Fitted: k = 2.00 ± 0.10 mm/s."
+        " Given the discovered form, heading_lag or sensor_latency explain part of what is left about equally well "
+        "(the held-out error at 1.0 s falls from 0.30 to 0.20 mm (33%; t = 6.0) with heading_lag); none of them is "
+        "named.")
+    r = result(1.0, 0.3)
+    r["stepwise"]["given_discovered"] = {"steps": [step("actuation_lag", 0.5, 0.2)]}
+    assert "(60%; t = 6.0; 100% of the excess over the noise floor)" in _given_text(r, K)  # 0.3 / 0.2 capped
