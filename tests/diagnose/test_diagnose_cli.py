@@ -27,7 +27,8 @@ def flow_diagnosis(plant_logs, tmp_path_factory):
     with contextlib.redirect_stdout(printed), pytest.MonkeyPatch.context() as mp:
         mp.setattr(Figure, "savefig", spy_on_savefig(Figure.savefig, figures))
         code = main(["diagnose", *logs, "--add", "background_flow", "--effects", "wall_drag,quadratic_drag",
-                     "--save-model", str(model), "--out", str(out)])
+                     "--save-model", str(model), "--out", str(out),
+                     "--jobs", "1"])  # the plots drawn in this process, where the savefig spy sees them
     assert code == 0
     return out, printed.getvalue(), model, figures
 
