@@ -247,7 +247,7 @@ ROWS = (
     Row("loop.py", "real-time factor of the racetrack PI loop, one process / one process per component; "
         "`--against DIR`: this checkout against another, run by run alternately", ">= 100 / >= 25",
         ("loop", "loop_010912a", "loop_against_785565c", "loop_against_d12c65a", "loop_against_d12c65a_soak",
-         "loop_against_34b820d", "loop_against_34b820d_r9"),
+         "loop_against_34b820d", "loop_against_34b820d_r9", "loop_against_34b820d_quiet"),
         lambda d: (_loop_against if "layouts" in d["output"] else _loop)(d)),
     Row("components.py", "each racetrack component's `step()` alone, replayed on a run's recorded inputs "
         "(checked against the recorded outputs)", "-", ("components",), _components),
