@@ -175,3 +175,50 @@ def test_the_look_alikes_of_a_candidate_about_to_be_named_get_their_full_fit():
     assert best["effect"] == "actuation_lag" and best["reduction"] == pytest.approx(0.25) and "actuation_lag" in fits
     assert [e["effect"] for e in entries] == ["actuation_lag", "sensor_latency", "background_flow"]
     assert entries[-1].get("screened")
+
+
+class _Rounds(_Quick):
+    """A :class:`_Quick` fitter that records the effects each fit adds; effects in ``hidden`` act nowhere the
+    logs go (not identifiable); a refit keeps a model's error."""
+
+    POLISH = 0.0
+
+    def __init__(self, gain: dict, hidden: set):
+        super().__init__(gain)
+        self.hidden, self.fitted = hidden, []
+
+    def _fit(self, err):
+        from types import SimpleNamespace
+
+        from cosim_plugins.diagnose.stepwise import Fit
+
+        return Fit(model=SimpleNamespace(err=err), ev={}, summary={"rollout_mm": {"1.0": err}})
+
+    def with_effects(self, before, effects, quick=False):
+        self.fitted += [e.name for e in effects]
+        fit, _ = super().with_effects(before, effects, quick)
+        return fit, not any(e.name in self.hidden for e in effects)
+
+    def refit(self, model):
+        return self._fit(model.err)
+
+
+def test_a_candidate_not_identifiable_in_the_first_round_is_carried_not_refitted():
+    """The step-out acts where the logs never go: after the flow is chosen, round 2 refits the others only and
+    lists the step-out's first-round entry as it was."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import rank, select
+
+    names = ("flow", "step_out", "drag", "wall", "lag")
+    fitter = _Rounds({"flow": 0.5, "step_out": 0.0, "drag": 0.0, "wall": 0.0, "lag": 0.0}, hidden={"step_out"})
+    effects = [SimpleNamespace(name=n) for n in names]
+    start = fitter._fit(1.0)
+    first = rank(fitter, start, effects, "1.0")
+    assert fitter.fitted == list(names)
+    fitter.fitted = []
+    sel = select(fitter, start, effects, first, 3, {"1.0": 0.1}, "1.0")
+    assert [s.effects for s in sel.steps] == [["flow"]] and len(sel.rounds) == 2
+    assert "step_out" not in fitter.fitted and {"drag", "wall", "lag"} <= set(fitter.fitted)
+    carried = next(e for e in sel.rounds[1] if e["effect"] == "step_out")
+    assert carried is next(e for e in first[0] if e["effect"] == "step_out") and not carried["identifiable"]
