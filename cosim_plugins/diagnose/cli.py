@@ -8,10 +8,10 @@
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 from cosim.contract.errors import UserError
+from cosim_plugins.commands import output_folder, progress
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, STOPS
 
 
@@ -57,18 +57,12 @@ def add_commands(subparsers) -> None:
     d.set_defaults(func=cmd_diagnose)
 
 
-def _progress(message: str) -> None:
-    print(f"  .. {message}", file=sys.stderr, flush=True)
-
-
 def cmd_diagnose(args) -> int:
     """``cosim diagnose``: which physical effects the model misses; writes the report folder."""
     from cosim_plugins.diagnose.pipeline import Settings, run
     from cosim_plugins.diagnose.report import write_outputs
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
+    out = output_folder(args.out)
     candidates = None
     if args.effects is not None:
         candidates = [n.strip() for n in args.effects.split(",") if n.strip() and n.strip() != "none"]
@@ -84,7 +78,7 @@ def cmd_diagnose(args) -> int:
                         reference=args.reference, seed=args.seed, discover=args.discover,
                         max_effects=args.max_effects, jobs=args.jobs, drift=not args.no_drift, per_log=per_log,
                         t_start=_t_start(args.t_start, len(args.logs)))
-    diag = run(args.logs, args.validate, settings, progress=_progress)
+    diag = run(args.logs, args.validate, settings, progress=progress)
     saved = save_model(diag.added_model.savable(), args.save_model) if args.save_model else None
     files = write_outputs(diag, out, settings.jobs)
     print(format_diagnosis(diag.result))

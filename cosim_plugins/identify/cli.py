@@ -8,10 +8,10 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from cosim.contract.errors import UserError
+from cosim_plugins.commands import progress
 
 
 def add_commands(subparsers) -> None:
@@ -56,10 +56,6 @@ def add_commands(subparsers) -> None:
     c.set_defaults(func=cmd_compare)
 
 
-def _progress(message: str) -> None:
-    print(f"  .. {message}", file=sys.stderr, flush=True)
-
-
 def _quality_table(dataset) -> str:
     from cosim_plugins.identify.dataset import log_label
 
@@ -84,7 +80,7 @@ def cmd_fit(args) -> int:
     print("data quality:")
     print(_quality_table(dataset))
     print(f"{len(dataset.pair_index())} one-step pairs at dt = {dataset.dt_s * 1e3:g} ms")
-    models = fit_models(dataset, names, seed=args.seed, progress=_progress, effects=effects)
+    models = fit_models(dataset, names, seed=args.seed, progress=progress, effects=effects)
     summary = summarise(models, dataset, seed=args.seed)
     path = save_models(models, summary, args.out)
     print(f"\n{'model':<16} {'train_time_s':>12} {'n_params':>9}  params")
@@ -141,7 +137,7 @@ def cmd_compare(args) -> int:
     dataset = Dataset.from_paths(args.logs)
     print("data quality:")
     print(_quality_table(dataset))
-    result = compare(models, dataset, progress=_progress)
+    result = compare(models, dataset, progress=progress)
     result["split"] = args.split
     result["logs"] = [str(p) for p in args.logs]
     print(f"\nsplit: {args.split}" if args.split else "")

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from cosim.contract.errors import UserError
 from cosim.contract.plugins import lookup, registry
+from cosim_plugins.commands import output_folder
 
 SUMMARY = "fit.json"
 
@@ -87,9 +88,7 @@ def summarise(models: dict, dataset, seed: int | None = None) -> dict:
 
 def save_models(models: dict, summary: dict, out_dir: str | Path) -> Path:
     """Write ``NAME.npz`` per model and ``fit.json`` into ``out_dir``; returns the summary path."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
+    out = output_folder(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for name, model in models.items():
         model.save(out / f"{name}.npz")

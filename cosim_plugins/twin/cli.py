@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 from pathlib import Path
 
 from cosim.contract.errors import UserError
+from cosim_plugins.commands import output_folder, progress
 
 
 def add_commands(subparsers) -> None:
@@ -43,18 +43,12 @@ def add_commands(subparsers) -> None:
     c.set_defaults(func=cmd_calibrate)
 
 
-def _progress(message: str) -> None:
-    print(f"  .. {message}", file=sys.stderr, flush=True)
-
-
 def cmd_calibrate(args) -> int:
     """``cosim twin calibrate``; see the module docstring."""
     from cosim_plugins.twin.calibrate import Settings, calibrate
     from cosim_plugins.twin.scenario import base_scenario, write_twin
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
+    out = output_folder(args.out)
     for p in [*args.logs, *args.validate]:
         if not Path(p).is_file():
             raise UserError(f"log {p}: no such file")
@@ -63,7 +57,7 @@ def cmd_calibrate(args) -> int:
     base_scenario(args.scenario)  # a bad --scenario fails before the fit
     effects = [n.strip() for n in (args.effects or "").split(",") if n.strip()]
     cal = calibrate(args.logs, args.validate, Settings(effects=effects, model=args.model, jobs=args.jobs,
-                                                       seed=args.seed), progress=_progress)
+                                                       seed=args.seed), progress=progress)
     out.mkdir(parents=True, exist_ok=True)
     (out / "twin.json").write_text(json.dumps(cal.result, indent=1) + "\n")
     path = write_twin(cal, out, args.scenario)
