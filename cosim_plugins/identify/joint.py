@@ -646,7 +646,12 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
     rows_used[(starts[:, None] + np.arange(length + 1)[None, :])[use]] = True
     x, jac, fun, n_used, n_distinct = res.x, res.jac, res.fun, n_window, 3 * int(rows_used.sum())
     jm.window_params = dict(zip(jm.names, map(float, x)))
-    polished = _polish(jm, tl, polish, x, lo, hi, scale, counter, score, progress) if polish is not None else None
+    polished = None
+    if polish is not None:
+        # the polish starts from the best-scored of the window fit's solution, the start it began from and the
+        # model as it came (an added effect at its initial value): on short windows that hardly see an effect,
+        # the window fit can wander along a flat valley to where the longer horizon is worse than where it began
+        polished = _polish(jm, tl, polish, [x, start_theta, theta_now], lo, hi, scale, counter, score, progress)
     if polished is not None:  # the open-loop windows are a sample: their measurements hardly overlap
         x, jac, fun = polished
         n_used = n_distinct = int(np.count_nonzero(fun))
@@ -666,9 +671,10 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
                      extra={"conditioning": jm.conditioning})
 
 
-def _polish(jm, tl, ol: OpenLoop, theta, lo, hi, scale, counter, score, progress):
-    """The fit refined on the open-loop errors of ``ol``: (theta, Jacobian, residuals), or None when it does not
-    lower ``score``."""
+def _polish(jm, tl, ol: OpenLoop, thetas, lo, hi, scale, counter, score, progress):
+    """The fit refined on the open-loop errors of ``ol`` from the best-scored of ``thetas`` (the window fit's
+    solution first): (theta, Jacobian, residuals), or None when the window fit's solution stands (nothing
+    lowers ``score`` below it). Without a score the polish starts from the window fit's solution."""
 
     def errors(held):
         with np.errstate(all="ignore"):
@@ -676,16 +682,24 @@ def _polish(jm, tl, ol: OpenLoop, theta, lo, hi, scale, counter, score, progress
         return np.nan_to_num(e, nan=DIVERGED_MM, posinf=DIVERGED_MM, neginf=-DIVERGED_MM), solve
 
     residual = HeldJacobian(jm, errors, counter)
-    before = _scored(jm, theta, score)
-    r = least_squares(residual, jm.clip(theta), jac=residual.jac, bounds=(lo, hi), x_scale=scale, method="trf",
+    scored = [_scored(jm, th, score) for th in (thetas if score is not None else thetas[:1])]
+    first = int(np.argmin(scored))
+    before, theta = scored[first], jm.clip(thetas[first])
+    r = least_squares(residual, theta, jac=residual.jac, bounds=(lo, hi), x_scale=scale, method="trf",
                       max_nfev=POLISH_NFEV, ftol=1e-6, xtol=1e-7)
     after = _scored(jm, r.x, score)
     keep = after < before if score is not None else True
     if progress:
-        progress(f"open-loop polish on {len(ol.starts)} windows x {max(ol.steps)} steps: "
+        progress(f"open-loop polish on {len(ol.starts)} windows x {max(ol.steps)} steps"
+                 + (f" from start {first + 1} of {len(scored)}" if first else "") + ": "
                  + (f"score {before:.3f} -> {after:.3f} mm ({'kept' if keep else 'not kept'})" if score is not None
                     else f"rms {math.sqrt(2 * r.cost / max(np.count_nonzero(r.fun), 1)):.3f} mm"))
-    return (r.x, r.jac, r.fun) if keep else None
+    if keep:
+        return r.x, r.jac, r.fun
+    if first == 0:
+        return None
+    jac = residual.jac(theta)  # a start scores better than the window fit's solution: it stands
+    return theta, jac, residual.r
 
 
 def _scored(jm, theta, score) -> float:
