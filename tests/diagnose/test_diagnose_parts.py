@@ -62,9 +62,44 @@ def test_transforms():
     traj = np.cumsum(np.ones((1, 8, 3)), axis=1)  # moving 1 mm per step
     late = known["sensor_latency"].transform(traj, 0.02, {"delay": 1.5})
     assert np.allclose(late[0, 3:], traj[0, 3:] - 1.5)
-    head = known["heading_lag"].transform(np.column_stack([np.ones(20), np.zeros(20), np.zeros(20)]) *
-                                          np.where(np.arange(20) < 5, 1, -1)[:, None] * 5, 0.02, {"tau": 0.05})
-    assert np.allclose(np.linalg.norm(head, axis=1), 5.0)  # direction lags, spin rate kept
+    turn = np.radians(np.where(np.arange(30) < 5, 0.0, 150.0))
+    head = known["heading_lag"].transform(5.0 * np.column_stack([np.cos(turn), np.sin(turn), np.zeros(30)]), 0.02,
+                                          {"tau": 0.05})
+    norm = np.linalg.norm(head, axis=1)  # the spin rate is kept: only a turn within a step shortens the mean
+    assert np.allclose(norm[:5], 5.0) and np.all(norm <= 5.0 + 1e-12) and np.allclose(norm[-5:], 5.0)
+    assert head[5, 0] > 0.0 and head[-1, 0] == pytest.approx(5.0 * np.cos(np.radians(150.0)), abs=0.01)  # lags, turns
+
+
+def test_heading_lag_is_the_overdamped_magnetic_alignment():
+    """The body axis b under a torque m B sin(theta) against a rotational drag: b' = (u_hat - (u_hat . b) b) / tau,
+    integrated numerically (scipy, tight tolerances) through turns of 30, 90 and 150 degrees, each step's mean
+    of |u| b against the transform; a small turn decays as a first-order lag."""
+    from scipy.integrate import solve_ivp
+
+    from cosim_plugins.effects.transforms import first_order_lag, heading_relaxation
+
+    tau, dt = 0.15, 0.02
+    rates = [8.0] * 5 + [12.0] * 15 + [10.0] * 15 + [6.0] * 15
+    angles = np.radians([0.0] * 5 + [30.0] * 15 + [120.0] * 15 + [-30.0] * 15)  # then 90 and 150 degrees back
+    u = np.column_stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)]) * np.array(rates)[:, None]
+    u[20:35, 2], u[20:35, :2] = 0.3 * u[20:35, 0], 0.9 * u[20:35, :2]  # out of the plane too
+    want, b = [], u[0] / np.linalg.norm(u[0])
+    for ui in u:
+        target = ui / np.linalg.norm(ui)
+
+        def rhs(t, y, target=target):
+            bn = y[:3] / np.linalg.norm(y[:3])
+            db = (target - target @ bn * bn) / tau
+            return np.concatenate([db, bn])  # the axis and the integral of the axis over the step
+
+        sol = solve_ivp(rhs, (0.0, dt), np.concatenate([b, np.zeros(3)]), rtol=1e-11, atol=1e-13)
+        b = sol.y[:3, -1] / np.linalg.norm(sol.y[:3, -1])
+        want.append(np.linalg.norm(ui) * sol.y[3:, -1] / dt)
+    got = heading_relaxation(u, dt, tau)
+    assert np.abs(got - np.array(want)).max() < 1e-6 * 12.0
+    small = np.column_stack([np.ones(30), np.r_[np.zeros(5), np.full(25, 1e-3)], np.zeros(30)]) * 10.0
+    assert np.allclose(heading_relaxation(small, dt, tau)[:, 1], first_order_lag(small, dt, tau)[:, 1], rtol=1e-5,
+                       atol=1e-9)
 
 
 def test_saved_model_with_a_library_term_loads(tmp_path):
