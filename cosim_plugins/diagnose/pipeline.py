@@ -312,7 +312,10 @@ def stepwise_json(sel: Selection, key: str, max_effects: int) -> dict:
         "steps": [{"effects": st.effects, "group": st.is_group, "rollout_before_mm": st.before.error(key),
                    "rollout_mm": st.entry["rollout_mm"][key], "reduction": st.entry["reduction"],
                    "t_stat": st.entry["t_stat"], "params": st.entry["params"],
-                   "group_evidence": st.group_evidence} for st in sel.steps],
+                   "group_evidence": st.group_evidence,
+                   "given": st.given if st.given is not None else [s.effects[0] for s in sel.steps[:i]],
+                   "alone": compact(st.alone) if st.alone is not None else None}
+                  for i, st in enumerate(sel.steps)],
         "dropped": sel.dropped,
         "joint": {"effects": sel.chosen, "rollout_mm": final,
                   "reduction": {h: reduction_of(start[h], final[h]) for h in final}},

@@ -18,6 +18,17 @@ extra iterations alone) and the next round starts.
 From the second round on, every remaining candidate is screened by a quick
 joint fit first and only the most promising get the full one (:func:`rank`).
 
+Two effects present at once can each explain little alone and much together
+(the baseline's parameters, fitted without either, take up part of the
+other's absence: a flow and a quadratic drag each lowered a case's error by
+6 % and 0 %, together by 66 %). So when nothing passes, the round's best is
+taken tentatively (a look-ahead): the next round, with full fits for every
+candidate, runs given it, and the tentative step is kept only when that
+round's choice passes given it, the two together pass against the model
+before them, and the tentative effect still passes once the other is in
+(:func:`_confirmed`); its look-alikes are then weighed in its place given the
+other (:func:`_given_family`). Otherwise it is dropped and the search stops.
+
 Selection stops at the noise floor, when nothing passes, when no candidate
 is left or after ``max_effects`` rounds. Then the backward check refits the
 model without each chosen effect in turn and drops an effect that no longer
@@ -26,7 +37,7 @@ passes the gates against the model without it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from cosim_plugins.diagnose.lookalike import FAMILIES, evidence_of, group_of
 from cosim_plugins.diagnose.verdict import AT_FLOOR, MIN_REDUCTION, MIN_T, passes
@@ -67,6 +78,8 @@ class Step:
     before: Fit
     group_evidence: dict = field(default_factory=dict)  # {member: {"t_stat", "differ_mm", ...}} for a group
     member_fits: dict = field(default_factory=dict)  # {member: Fit} of every member, given the model before
+    alone: dict | None = None  # a look-ahead's step: its rank entry alone, which did not pass (see select)
+    given: list | None = None  # the effects ``entry``'s drop is conditional on (None: the steps before it)
 
     @property
     def is_group(self) -> bool:
@@ -108,6 +121,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
     # in later rounds, its entry carried
     unseen = {e["effect"]: e for e in first[0] if not e["identifiable"]}
     stop = "max_effects"
+    pending = None  # a look-ahead's tentative step: (its index in steps, the model before it, remaining before it)
     for round_no in range(1, max_effects + 1):
         if not remaining:
             stop = "no_candidates"
@@ -119,14 +133,33 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
             entries, fits = first
         else:
             say(f"round {round_no}: {len(remaining)} candidates given {', '.join(s.effects[0] for s in steps)}")
+            # after a tentative step every candidate gets the full fit: a quick fit on short windows can miss
+            # the partner that only shows over the longer horizons
             entries, fits = rank(fitter, current, [e for e in remaining if e.name not in unseen], key, say,
-                                 screen=True)
+                                 screen=pending is None)
             entries += [unseen[e.name] for e in remaining if e.name in unseen]
         rounds.append(entries)
         best = next((e for e in entries if e["identifiable"]), None)
         if best is not None and passes(best, current.error(key), floor.get(key), key):
             entries, best = _full_family(fitter, current, entries, fits, best, by_name, key, say)
         if best is None or not passes(best, current.error(key), floor.get(key), key):
+            if pending is None and best is not None and best.get("screened"):  # the look-ahead needs its full fit
+                (fit, identifiable), = fitter.with_each(current, [by_name[best["effect"]]])
+                fits[best["effect"]], best = fit, fitter.entry(by_name[best["effect"]], fit, identifiable, current)
+            if (pending is None and best is not None and best["identifiable"] and round_no < max_effects
+                    and best["reduction"] > 0):
+                # two effects present at once can each explain little alone (the baseline's parameters take up
+                # the other's absence) and much together: the best is taken tentatively, and kept only if the
+                # next round's choice passes given it and the two then earn their places together (_confirmed)
+                tentative = fitter.refit(fits[best["effect"]].model)
+                say(f"round {round_no}: none passes alone; {best['effect']} ({best['reduction']:+.1%}, "
+                    f"t = {best['t_stat']:.1f}) taken tentatively, to be kept only with the next round's choice")
+                pending = (len(steps), current, remaining)
+                steps.append(Step(effects=[best["effect"]], entry=best, fit=tentative, before=current,
+                                  alone=best))
+                current = tentative
+                remaining = [e for e in remaining if e.name != best["effect"]]
+                continue
             stop = "none_passes"
             break
         members, evidence = group_of(fitter, best, entries, fits, floor.get(key), key)
@@ -142,10 +175,70 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
         say(f"round {round_no}: chose {' ~ '.join(members)}: {current.error(key):.3f} -> {chosen.error(key):.3f} mm")
         current = chosen
         remaining = [e for e in remaining if e.name not in members]
+        if pending is not None:
+            if not _confirmed(fitter, steps, pending, by_name, floor.get(key), key, say):
+                steps, current, remaining = steps[:pending[0]], pending[1], pending[2]
+                stop = "none_passes"
+                break
+            confirmed = steps[pending[0]]
+            remaining = [e for e in remaining if e.name not in confirmed.effects]
+            if confirmed.fit is not chosen:  # a look-alike explains more in the tentative step's place
+                current = fitter.refit(confirmed.fit.model)
+            pending = None
+    if pending is not None:  # the look-ahead's next round chose nothing: the tentative step goes
+        say(f"{steps[pending[0]].effects[0]}, taken tentatively, is dropped: nothing passes given it")
+        steps, current = steps[:pending[0]], pending[1]
     selection = Selection(steps=steps, rounds=rounds, final=current, start=start, stop=stop)
     if len(steps) >= 2:
         _backward(fitter, selection, by_name, floor.get(key), key, say)
     return selection
+
+
+def _confirmed(fitter, steps: list, pending: tuple, by_name: dict, floor: float | None, key: str, say) -> bool:
+    """Whether a look-ahead's tentative step (``steps[pending[0]]``) and the step just chosen given it (the last)
+    earn their places together: the two lower the error of the model before them by the verdict's gates, and the
+    tentative one still passes them once the other is in (the model refitted without it). If so, the tentative
+    step's entry becomes its drop given the others (in place)."""
+    index, before, _ = pending
+    tentative, final = steps[index], steps[-1].fit
+    pair = fitter.entry(by_name[steps[-1].effects[0]], final, True, before)
+    others = [st.effects[0] for i, st in enumerate(steps) if i != index]
+    without = fitter.without(final, [by_name[n] for n in others])
+    given = fitter.entry(by_name[tentative.effects[0]], final, True, without)
+    ok = passes(pair, before.error(key), floor, key) and passes(given, without.error(key), floor, key)
+    name = tentative.effects[0]
+    say(f"  together with {steps[-1].effects[0]}: {before.error(key):.3f} -> {final.error(key):.3f} mm "
+        f"({pair['reduction']:+.1%}, t = {pair['t_stat']:.1f}); {name} given the others {given['reduction']:+.1%} "
+        f"(t = {given['t_stat']:.1f}): " + ("both kept" if ok else f"{name} and {steps[-1].effects[0]} dropped"))
+    if ok:
+        steps[index] = _given_family(fitter, replace(tentative, entry=given, before=without, given=others,
+                                                     fit=steps[-1].fit, member_fits={name: steps[-1].fit}),
+                                     by_name, floor, key, say)
+    return ok
+
+
+def _given_family(fitter, step: Step, by_name: dict, floor: float | None, key: str, say) -> Step:
+    """A look-ahead's confirmed step with its look-alikes (:data:`.lookalike.FAMILIES`) weighed as a normal round
+    weighs them, but given the effects chosen with it (``step.before``): each look-alike is refitted in its
+    place, and a group is declared when the logs cannot tell them apart (:func:`.lookalike.group_of`), led by a
+    look-alike that explains more. ``step.fit`` is the model with the step's effect and the others."""
+    name = step.effects[0]
+    family = next((f for f in FAMILIES if name in f), ())
+    rivals = [by_name[n] for n in sorted(family) if n != name and n in by_name]
+    if not rivals:
+        return step
+    say(f"  {name}'s look-alikes in its place, given {', '.join(step.given)}: {', '.join(e.name for e in rivals)}")
+    entries, fits = [step.entry], {name: step.fit}
+    for effect, (fit, identifiable) in zip(rivals, fitter.with_each(step.before, rivals)):
+        entries.append(fitter.entry(effect, fit, identifiable, step.before))
+        fits[effect.name] = fit
+        say(f"  {effect.name}: {entries[-1]['reduction']:+.1%} at {key} s (t = {entries[-1]['t_stat']:.1f})")
+    entries.sort(key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)
+    members, evidence = group_of(fitter, step.entry, entries, fits, floor, key)
+    members, evidence = _interchangeable(fitter, members, evidence, fits, by_name, key, say)
+    lead = next(e for e in entries if e["effect"] == members[0])
+    return replace(step, effects=members, entry=lead, fit=fits[members[0]], group_evidence=evidence,
+                   member_fits={m: fits[m] for m in members})
 
 
 def _full_family(fitter, current: Fit, entries: list, fits: dict, best: dict, by_name: dict, key: str, say):

@@ -205,12 +205,19 @@ def _steps_text(result: dict, key: str) -> str:
     sw, floor = result["stepwise"], result["noise"]["floor_mm"][key]
     parts = []
     for i, st in enumerate(sw["steps"]):
-        given = "" if i == 0 else f" given {' and '.join(s['effects'][0] for s in sw['steps'][:i])}"
+        on = st.get("given", [s["effects"][0] for s in sw["steps"][:i]])
+        given = f" given {' and '.join(on)}" if on else ""
         share = explained_share(st["rollout_before_mm"], st["rollout_mm"], floor)
         drop = (f"the held-out error at {key} s falls from {st['rollout_before_mm']:.2f} to {st['rollout_mm']:.2f} mm"
                 f"{given} ({st['reduction']:.0%}; t = {st['t_stat']:.1f}"
                 + (f"; {min(share, 1.0):.0%} of the excess over the noise floor, {floor:.2f} mm)" if floor is not None
                    else "; no noise floor: the camera noise could not be estimated)"))
+        if st.get("alone") and not st["group"]:
+            alone = st["alone"]
+            parts.append(f"{st['effects'][0]} explains part of the error only together with {' and '.join(on)}: "
+                         f"alone it lowers it by {alone['reduction']:.0%} (t = {alone['t_stat']:.1f}), not enough, "
+                         f"but refitted with it, {drop}. Fitted: {params_text(st['params'])}.")
+            continue
         if not st["group"]:
             parts.append(f"{st['effects'][0]} explains {'the' if len(sw['steps']) == 1 else 'part of the'} error: "
                          f"refitted with it, {drop}. Fitted: {params_text(st['params'])}.")
