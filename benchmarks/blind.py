@@ -38,7 +38,11 @@ it finishes; at the end one JSON object is printed:
   with ``--multi-draw visible``, the default, each case is redrawn until it
   is, up to 12 draws) and ``all_named_drawn_visible`` over them;
   ``declared_group`` (cases declaring a look-alike group that holds a hidden
-  library effect);
+  library effect); ``experiments`` (of those, cases whose designed
+  experiment was simulated and its log added, as for ``lookalike``) and
+  ``all_named_after_experiment`` (fraction naming every hidden library effect
+  at once or once the experiment's log is added; ``extra_named_after_experiment``
+  counts the extra names after it);
   ``by_kind``: the same for two library effects (``library``) and a
   library and an outside one (``outside``). Each hidden effect with a true
   form is refitted alone: ``true_reductions`` in the records;
@@ -196,6 +200,7 @@ def run_case(case: blind_sim.Case, out: Path, multi_draw: str = "visible") -> di
             if source:
                 red, prm = _true_refit(logs, source, name, folder / f"true_form_{effect}.py")
                 record["true_reductions"][effect], record["true_params"][effect] = red, prm
+        record["after"] = _multi_experiment(case, folder, logs, record, d)
     elif case.true_form:
         record["true_reduction"], record["true_params"] = _true_refit(logs, case.true_form, case.true_form_name,
                                                                       folder / "true_form.py")
@@ -232,6 +237,25 @@ def _lookalike_round(case: blind_sim.Case, folder: Path, logs: list, fields: dic
     out["after"] = {k: again[k] for k in ("named", "named_effects", "lookalikes", "status", "top", "top_reduction")}
     out["after"]["named_right"] = hidden in again["named_effects"]
     return out
+
+
+def _multi_experiment(case: blind_sim.Case, folder: Path, logs: list, record: dict, d) -> dict | None:
+    """A multi case whose verdict leaves a hidden library effect unnamed but in a declared look-alike group: the
+    designed experiment's log (the case's plant under its ``experiment_excitation.csv``) added, the verdict
+    again, as a user would go on; None when every hidden library effect is named at once or none is in a group."""
+    hidden = set(record["hidden_library"])
+    grouped = {e for g in record["lookalikes"] for e in g}
+    if hidden <= set(record["named_effects"]) or not (hidden - set(record["named_effects"])) & grouped:
+        return None
+    if d.experiment is None:
+        return {"experiment": "none designed", "named_effects": record["named_effects"], "all_named": False}
+    where = folder / "experiment"
+    where.mkdir(parents=True, exist_ok=True)
+    csv = next(p for p in (Path(x) for x in d.experiment.write(where)) if p.suffix == ".csv")
+    again, _ = _diagnose(list(logs) + [blind_sim.simulate_experiment(case, csv, where)])
+    return {"experiment": "simulated", "members": (d.result.get("experiment") or {}).get("members"),
+            "named_effects": again["named_effects"], "lookalikes": again["lookalikes"],
+            "all_named": hidden <= set(again["named_effects"])}
 
 
 def _worker(args) -> dict:
@@ -349,7 +373,13 @@ def summarise(records: list[dict]) -> dict:
                   "drawn_visible": sum(1 for r in multi if multi_visible(r)),
                   "all_named_drawn_visible": frac([r for r in multi if multi_visible(r)], all_named),
                   "declared_group": sum(1 for r in multi if any(set(g) & set(r["hidden_library"])
-                                                                for g in r["lookalikes"]))},
+                                                                for g in r["lookalikes"])),
+                  "experiments": sum(1 for r in multi if (r.get("after") or {}).get("experiment") == "simulated"),
+                  "all_named_after_experiment": frac(multi, lambda r: all_named(r)
+                                                     or bool((r.get("after") or {}).get("all_named"))),
+                  "extra_named_after_experiment": sum(
+                      1 for r in multi if extra_named({**r, **({"named_effects": r["after"]["named_effects"]}
+                                                               if r.get("after") else {})}))},
         "lookalike": {"cases": len(look), "wrong_named": sum(1 for r in look if wrong_named(r)),
                       "resolved": frac(look, resolved), "named_at_once": frac(look, lambda r: r["named_at_once"]),
                       "visible": sum(1 for r in look if look_visible(r)),

@@ -45,3 +45,21 @@ def test_the_bench_floor_grows_with_the_camera_noise():
     quiet, noisy = _case(), blind_sim.draw_multi_case(5, ["background_flow", "actuation_lag"],
                                                       **{**SHORT, "noise_mm": 0.3})
     assert blind_visible.bench_floor_mm(noisy) == pytest.approx(3.0 * blind_visible.bench_floor_mm(quiet))
+
+
+def test_a_pair_that_never_shows_is_drawn_anew_of_the_same_kind(monkeypatch):
+    hidden = "anisotropic_drag"  # stands for an effect these logs never show, whatever its draw
+
+    def visibility(case):
+        return {e: {"ratio": 0.2 if e == hidden else 3.0, "visible": e != hidden} for e in case.effects}
+
+    monkeypatch.setattr(blind_visible, "visibility", visibility)
+    case = blind_sim.draw_multi_case(7, [hidden, "background_flow"], index=4)
+    got, draw = blind_visible.visible_case(case, attempts=3)
+    assert draw["all_visible"] and hidden not in got.effects and got.index == 4
+    assert draw["pairs"][0] == [hidden, "background_flow"] and draw["pairs"][-1] == got.effects
+    assert all(e in blind_sim.LIBRARY for e in got.effects)  # two library effects stay two library effects
+    assert draw["attempts"] == 3 + 3 * (len(draw["pairs"]) - 2) + 1  # every draw of each invisible pair tried
+    outside = blind_sim.draw_multi_case(7, [hidden, "shear_flow"], index=1)
+    got, draw = blind_visible.visible_case(outside, attempts=2)
+    assert draw["all_visible"] and hidden not in got.effects and any(e not in blind_sim.LIBRARY for e in got.effects)
