@@ -1,5 +1,5 @@
 """Injected against native: the plant FMU's built-in effects vs the same effects applied through its
-external force input by ``twin.effect`` (docs/twin.md); prints JSON.
+external force input (docs/twin.md, "Injected against native"); prints JSON.
 
 Each case runs the racetrack twice with the same seed (camera noise, outliers): once on ``plant.fmu`` with
 the FMU's switch on (``background_flow_on`` with flow_x = 2 mm/s, or ``wall_drag_on``), once on
@@ -8,22 +8,27 @@ the two runs tick by tick: ``plant_mm`` the true positions (trace.npz), ``log_mm
 (log.csv, the camera's positions), each as the mean and max distance [mm]. Target (issue 37): within
 0.05 mm mean over 60 s.
 
-Cases (``form`` says whether the injected law can equal the FMU's):
+Cases (default; ``form`` says what is injected):
   zero_force          nothing injected, no switch: the forced plant must equal plant.fmu exactly;
-  background_flow     the library's background_flow (-Cd (v - w) with one scalar drag Cd1 = drag_axial)
-                      against the FMU's flow drag, which is anisotropic (x1.5 across the long axis): as
-                      shipped (anisotropic) and with the FMU's drag isotropic (forms equal); linear, held;
-  wall_drag           the library's wall_drag (a 1/d law) fitted to the FMU's exponential law
-                      (cosim_plugins/twin/match.py), on the racetrack as shipped (z = 0, 20 mm or more
-                      from any wall) and near the floor (z = -70 mm, 3-5 mm from it, isotropic drag);
-  wall_drag_exp       examples/my_effect.py's wall_drag_exp (the FMU's exponential form, a user's effect
-                      file) near the floor: linear and held coupling.
+  fmu_background_flow, fmu_wall_drag
+                      the FMU's own laws (cosim_plugins/twin/fmu_laws.py) on the plant as shipped (anisotropic
+                      drag, heading dynamics on) through ``twin.effect_on_axis``: about the plant's axis at
+                      mid-step (default), at the step's start (``axis_at_start``), or the command's axis
+                      (``command_axis``, plain ``twin.effect``); the wall drag at z = 0 (20 mm or more from any
+                      wall) and near the floor (z = -70 mm, 3-5 mm from it);
+  scatter             the loop's own floor: the same plant with and without a constant SCATTER_N force along x,
+                      at z = 0 and near the floor (wall drag on);
+with ``--library`` instead the library's forms (background_flow: a scalar drag; wall_drag: a 1/d law fitted to
+the FMU's exponential, cosim_plugins/twin/match.py; examples/my_effect.py's wall_drag_exp near one wall).
 
-``open_loop_mm`` replays the native run's coil commands open loop through the forced plant with the
-effect, linear and held (the closed loop amplifies any difference: a force of 1e-11 N alone moves a
-60 s racetrack by about 0.06 mm mean, as camera pixels flip), so it measures the injection itself.
+``--camera grid,fine``: each case with the shipped camera (0.19 mm pixel grid, noise 0.5 px) and with one that
+does not quantise (1 um pixels, noise 95 px: the same 0.095 mm sd), to tell the pixel grid's amplification
+(a pixel flips, the controller answers) from the injection. ``open_loop_mm`` (first camera listed) replays the
+native run's coil commands open loop through the forced plant with the effect, linear and held coupling: no
+feedback, so it measures the injection itself.
 
     PYTHONPATH=. .venv/bin/python benchmarks/twin_inject.py [--duration 60] [--only NAME,...] [--seeds 1,2]
+                                                            [--camera grid,fine] [--library] [--no-open-loop]
 """
 
 from __future__ import annotations
