@@ -157,6 +157,18 @@ def _twin(d: dict) -> str:
             f"{o['blind']['without_effect']['twin_mm']:.3f} mm without the effect" + _twin_fresh(o))
 
 
+def _twin_inject(d: dict) -> str:
+    """The FMU's laws injected against native, fine camera: each case's mean over seeds, and the floor's."""
+    o = d["output"]
+    by: dict[str, list[float]] = {}
+    for c in o["cases"]:
+        if c["camera"] == "fine" and (c["name"].startswith(("fmu_background_flow/", "fmu_wall_drag/"))
+                                      and "command_axis" not in c["name"] and "axis_at" not in c["name"]
+                                      or c["name"].startswith("scatter")):
+            by.setdefault(c["name"], []).append(c["log_mm"]["mean"])
+    return ", ".join(f"{k} {sum(v) / len(v):.3f}" for k, v in by.items()) + " mm"
+
+
 def _twin_fresh(o: dict) -> str:
     """The twin's blind figures on a fresh seed, when the run has one."""
     if "blind_fresh" not in o:
@@ -269,6 +281,10 @@ ROWS = (
         "bench case; held-out open-loop error at 1.0 s of the calibrated twin, the uncalibrated FMU and diagnose's "
         "host model ([The twin](twin.md))", "calibration <= 3 min; twin <= 0.5x uncalibrated, <= 1.5x host",
         ("twin",), _twin),
+    Row("twin_inject.py", "the plant FMU's wall drag and background flow injected through its force input "
+        "against its own switches: racetrack tracking logs apart over 60 s, seeds 1-4, fine camera (the grid "
+        "camera's and the loop's own scatter in [The twin](twin.md))", "<= 0.05 mm mean", ("twin_inject",),
+        _twin_inject),
     Row("blind.py", "`cosim diagnose` on logs of an independent simulator, 60 random cases "
         "(see [How diagnose is validated](diagnose/validation.md))",
         "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75", ("blind_s3", "blind_s2", "blind_s43"),
@@ -443,6 +459,42 @@ def blind_table() -> str:
     return table(["figure", "seed 3 (new)", "seed 2", "target"], rows)
 
 
+# ---------------------------------------------------------------- the twin page
+
+
+def twin_inject_table(name: str) -> Callable[[], str]:
+    """docs/twin.md: ``benchmarks/twin_inject.py``'s runs kept in ``data/NAME.json``, one row a case and camera:
+    the tracking logs apart (mean per seed, their mean, the worst max), the open-loop replays, the tracking
+    errors; under it, the command that printed them."""
+    def render() -> str:
+        d = load(name)
+        o = d["output"]
+        target, rows = o["target_mean_mm"], []
+        groups: dict[tuple[str, str], list[dict]] = {}
+        for c in o["cases"]:
+            groups.setdefault((c["name"], c["camera"]), []).append(c)
+        for (case, camera), runs in groups.items():
+            means = [r["log_mm"]["mean"] for r in runs]
+            mean = sum(means) / len(means)
+            loops = [r["open_loop_mm"] for r in runs if r["open_loop_mm"]]
+            loop = (" / ".join(f"{sum(x[k]['mean'] for x in loops) / len(loops):.4f}" for k in ("linear", "held"))
+                    if loops else "-")
+            track = " / ".join(f"{sum(r['tracking_error_mean_mm'][k] for r in runs) / len(runs):.3f}"
+                               for k in ("native", "injected"))
+            ok = sum(m <= target for m in means)
+            rows.append([f"`{case}`", runs[0]["form"], camera, " / ".join(f"{m:.4f}" for m in means),
+                         f"**{mean:.4f}**" if mean <= target else f"{mean:.4f}",
+                         f"{max(r['log_mm']['max'] for r in runs):.3f}", f"{ok} of {len(means)}", loop, track])
+        seeds = ", ".join(str(s) for s in dict.fromkeys(c["seed"] for c in o["cases"]))
+        head = table(["case", "forms", "camera", f"logs apart, mean, seeds {seeds} [mm]", "mean [mm]", "max [mm]",
+                      f"seeds <= {target:g} mm", "open loop, linear / held, mean [mm]",
+                      "tracking error, native / injected [mm]"], rows)
+        return head + (f"\n(`PYTHONPATH=. .venv/bin/python {d['command']}`: {o['duration_s']:g} s a run, "
+                       f"{o['wall_s']:.0f} s in all; commit {d['commit']}, {when(d)}; "
+                       f"[data](benchmarks/data/{name}.json))\n")
+    return render
+
+
 # ---------------------------------------------------------------- the long-runs page
 
 
@@ -503,6 +555,11 @@ SOAK_TABLES = {"soak-hours-1-12": ("soak_one_process", "soak_processes_first"),
                "soak-processes-12h": ("soak_processes",)}
 
 
+#: docs/twin.md's tables of ``benchmarks/twin_inject.py``'s runs: the FMU's laws and the scatter floor, and
+#: (``--library``) the library's forms; table name -> data file.
+TWIN_INJECT_TABLES = {"twin-inject": "twin_inject", "twin-inject-library": "twin_inject_library"}
+
+
 #: Every table a page may mark, by name: what renders it (from the data files it loads).
 TABLES: dict[str, Callable[[], str]] = {
     "benchmarks": benchmarks_table,
@@ -515,6 +572,7 @@ TABLES: dict[str, Callable[[], str]] = {
     **{name: soak_table(files) for name, files in SOAK_TABLES.items()},
     "realtime": realtime_table,
     "sweep-jobs": sweep_jobs_table,
+    **{name: twin_inject_table(data) for name, data in TWIN_INJECT_TABLES.items()},
 }
 
 

@@ -139,3 +139,65 @@ class EffectInjector(Component):
         if not self.linear:
             return {"force": f, "force_dp": self._zero9, "force_dv": self._zero9}
         return {"force": f, "force_dp": dfdp.reshape(9), "force_dv": dfdv.reshape(9)}
+
+
+
+#: The command [rad/s] the effects see along the plant's axis when the controller commands none: the axis
+#: must keep a direction for an axis-dependent law (fmu_laws), and an effect of the command's size sees ~0.
+AXIS_ONLY_RAD_S = 1e-9
+AXIS_AT = ("midpoint", "start")
+AXIS_PARAMS = {"axis_at": Param("midpoint", "the plant's axis the effects see over a step: 'midpoint' (extrapolated "
+                                            "by half its last step's turn), 'start' (at the step's start)")}
+
+
+class EffectOnPlantAxis(EffectInjector):
+    """``twin.effect_on_axis``: :class:`EffectInjector` whose effects see the command turned onto the plant's
+    real long axis, u = s |omega| a (a the plant's axis, s the sign of a . omega; a zero omega gives
+    ``AXIS_ONLY_RAD_S`` a). For laws that act through the body's axis (the FMU's anisotropic drag,
+    :mod:`.fmu_laws`) when the axis lags the command (the FMU's heading dynamics on); the command's size
+    is kept, its direction is the body's.
+
+    The axis turns within the step (the FMU integrates at 1 ms), and the force's coefficients sent to the
+    FMU cannot follow it; ``axis_at: midpoint`` (default) evaluates the effects at the axis half a step on,
+    extrapolated from the axis's turn over the last step, a_mid = (a + (a - a_prev) / 2) / |...| (the
+    first step: a), which removes most of that lag (docs/twin.md); ``start`` at the axis at the step's
+    start. Wire ``axis`` from ``plant.axis`` with no delay."""
+
+    inputs = (*EffectInjector.inputs,
+              Port("axis", (3,), "1", "the plant's long axis, unit vector (wire from plant.axis, no delay)"))
+    params_spec = {**PARAMS, **AXIS_PARAMS}
+
+    @staticmethod
+    def _split(params: Mapping[str, Any]) -> tuple[dict, str]:
+        """(the base component's params, axis_at); a bad axis_at raises a ComponentError."""
+        axis_at = read_params({k: v for k, v in params.items() if k in AXIS_PARAMS}, AXIS_PARAMS)["axis_at"]
+        if axis_at not in AXIS_AT:
+            raise ComponentError(f"parameter axis_at={axis_at!r}: expected one of {', '.join(AXIS_AT)}")
+        return {k: v for k, v in params.items() if k not in AXIS_PARAMS}, axis_at
+
+    @classmethod
+    def validate_params(cls, params: Mapping[str, Any]) -> None:
+        base, _ = cls._split(params)
+        super().validate_params(base)
+
+    @classmethod
+    def artifacts(cls, params: Mapping[str, Any]) -> list:
+        return super().artifacts(cls._split(params)[0])
+
+    def setup(self, params: Mapping[str, Any], rng: np.random.Generator) -> None:
+        base, self.axis_at = self._split(params)
+        super().setup(base, rng)
+        self._prev: np.ndarray | None = None
+
+    def step(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        a, w = np.asarray(inputs["axis"], dtype=float), np.asarray(inputs["omega"], dtype=float)
+        size = float(np.sqrt(a @ a))
+        if not (np.isfinite(size) and abs(size - 1.0) < 1e-6):
+            raise ComponentError(f"t={t:g} s: the plant's axis {a} is not a unit vector")
+        seen = a
+        if self.axis_at == "midpoint" and self._prev is not None:
+            ahead = a + 0.5 * (a - self._prev)
+            seen = ahead / np.sqrt(ahead @ ahead)
+        self._prev = a.copy()
+        sign = -1.0 if float(seen @ w) < 0.0 else 1.0
+        return super().step(t, {**inputs, "omega": sign * max(float(np.sqrt(w @ w)), AXIS_ONLY_RAD_S) * seen})

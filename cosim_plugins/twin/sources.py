@@ -34,13 +34,16 @@ class EffectSource:
 
 
 def effects_by_name(names: Sequence[str]) -> EffectSource:
-    """Registered effects (the library's, or a user's file loaded as a plugin) by name.
+    """Registered effects (the library's, or a user's file loaded as a plugin) or the twin's own
+    (:func:`cosim_plugins.twin.fmu_laws.twin_effects`: the plant FMU's laws) by name.
 
     An unknown name raises a UserError listing the known effects.
     """
-    from cosim_plugins.identify.effect import resolve
+    from cosim_plugins.identify.effect import known_effects, resolve
+    from cosim_plugins.twin.fmu_laws import twin_effects
 
-    return EffectSource(effects=resolve(list(names)), origin="effects " + ", ".join(names))
+    known = {**twin_effects(), **known_effects()}
+    return EffectSource(effects=resolve(list(names), known), origin="effects " + ", ".join(names))
 
 
 def effects_of_model(path: str | Path, names: Sequence[str] = ()) -> EffectSource:

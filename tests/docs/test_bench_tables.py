@@ -28,7 +28,7 @@ def test_every_data_file_has_its_header_and_is_used():
     used |= {"archive", "walkthrough_hidden_effects"} | {n for n, _ in bench_tables.DRIFT_SEEDS}
     used |= {n for n, _ in bench_tables.SEVERAL_SEEDS}
     used |= {n for names in bench_tables.SOAK_TABLES.values() for n in names}
-    used |= {"sweep_jobs_reproduce_quick", "sweep_jobs_reproduce"}
+    used |= {"sweep_jobs_reproduce_quick", "sweep_jobs_reproduce"} | set(bench_tables.TWIN_INJECT_TABLES.values())
     files = {p.stem: json.loads(p.read_text()) for p in bench_tables.DATA.glob("*.json")}
     assert used <= set(files), used - set(files)
     assert set(files) <= used, f"data no table renders: {set(files) - used}"

@@ -25,7 +25,7 @@ def _run(tmp: Path, name: str, scenario: dict) -> np.ndarray:
     return np.load(tmp / name / "trace.npz")["plant.position"]
 
 
-def _pair(tmp, plant, native, effects, values, coupling="linear", plugins=(), floor=False):
+def _pair(tmp, plant, native, effects, values, coupling="linear", plugins=(), floor=False, component=None):
     nat = yaml.safe_load((SCENARIOS / "racetrack.yaml").read_text())
     inj = yaml.safe_load((SCENARIOS / "twin_racetrack.yaml").read_text())
     for sc in (nat, inj):
@@ -37,6 +37,9 @@ def _pair(tmp, plant, native, effects, values, coupling="linear", plugins=(), fl
     inj["components"]["effect"]["params"].update(effects=effects, effect_params=values, coupling=coupling)
     if plugins:
         inj["plugins"] = list(plugins)
+    if component:  # another effect component, with the plant's axis wired in
+        inj["components"]["effect"]["plugin"] = component["plugin"]
+        inj["components"]["effect"]["inputs"]["axis"] = component["axis"]
     a, b = _run(tmp, "native", nat), _run(tmp, "injected", inj)
     return np.linalg.norm(a - b, axis=1) * 1e3
 
@@ -66,3 +69,18 @@ def test_wall_drag_injected_matches_the_fmus_own_near_the_floor(use_fmu, tmp_pat
     none = _pair(tmp_path, ISO, {"wall_drag_on": True}, ["wall_drag_exp"], {"wall_drag_exp": {"c": 0.0}},
                  plugins=[str(ROOT / "examples" / "my_effect.py")], floor=True)
     assert none.mean() > 10 * TARGET_MM
+
+
+def test_the_fmus_own_laws_injected_on_the_plants_axis_match_the_anisotropic_plant(use_fmu, tmp_path):
+    """The plant as shipped (anisotropic drag, heading dynamics): the FMU-law effects through twin.effect_on_axis."""
+    from cosim_plugins.twin.fmu_laws import BACKGROUND_FLOW, WALL_DRAG, effect_params
+
+    values = effect_params({"flow_x": 0.002})
+    on_axis = {"plugin": "twin.effect_on_axis", "axis": "plant.axis"}
+    for native, name, floor in (({"background_flow_on": True, "flow_x": 0.002}, BACKGROUND_FLOW, False),
+                                ({"wall_drag_on": True}, WALL_DRAG, True)):
+        d = _pair(tmp_path, {}, native, [name], {name: values[name]}, floor=floor, component=on_axis)
+        assert d.mean() < 0.1 * TARGET_MM
+        none = _pair(tmp_path, {}, native, [name], {name: {**values[name], "drag_axial": 0.0}}, floor=floor,
+                     component=on_axis)
+        assert none.mean() > 10 * TARGET_MM
