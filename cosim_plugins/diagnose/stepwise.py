@@ -22,7 +22,8 @@ Two effects present at once can each explain little alone and much together
 (the baseline's parameters, fitted without either, take up part of the
 other's absence: a flow and a quadratic drag each lowered a case's error by
 6 % and 0 %, together by 66 %). So when nothing passes, the round's best is
-taken tentatively (a look-ahead): the next round, with full fits for every
+taken tentatively if it lowers the error by at least :data:`SCREEN_MIN` (a
+look-ahead): the next round, with full fits for every
 candidate, runs given it, and the tentative step is kept only when that
 round's choice passes given it, the two together pass against the model
 before them, and the tentative effect still passes once the other is in
@@ -143,11 +144,12 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
         if best is not None and passes(best, current.error(key), floor.get(key), key):
             entries, best = _full_family(fitter, current, entries, fits, best, by_name, key, say)
         if best is None or not passes(best, current.error(key), floor.get(key), key):
-            if pending is None and best is not None and best.get("screened"):  # the look-ahead needs its full fit
+            hopeful = (pending is None and best is not None and round_no < max_effects
+                       and best["reduction"] >= SCREEN_MIN)
+            if hopeful and best.get("screened"):  # the look-ahead needs its full fit
                 (fit, identifiable), = fitter.with_each(current, [by_name[best["effect"]]])
                 fits[best["effect"]], best = fit, fitter.entry(by_name[best["effect"]], fit, identifiable, current)
-            if (pending is None and best is not None and best["identifiable"] and round_no < max_effects
-                    and best["reduction"] > 0):
+            if hopeful and best["identifiable"] and best["reduction"] >= SCREEN_MIN:
                 # two effects present at once can each explain little alone (the baseline's parameters take up
                 # the other's absence) and much together: the best is taken tentatively, and kept only if the
                 # next round's choice passes given it and the two then earn their places together (_confirmed)

@@ -651,7 +651,9 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
         # the polish starts from the best-scored of the window fit's solution, the start it began from and the
         # model as it came (an added effect at its initial value): on short windows that hardly see an effect,
         # the window fit can wander along a flat valley to where the longer horizon is worse than where it began
-        polished = _polish(jm, tl, polish, [x, start_theta, theta_now], lo, hi, scale, counter, score, progress)
+        known = {1: costs[best]} if len(candidates) > 1 and score is not None else {}  # start_theta's, scored above
+        polish_from = [x, start_theta] + ([theta_now] if start_theta is not theta_now else [])
+        polished = _polish(jm, tl, polish, polish_from, lo, hi, scale, counter, score, progress, known)
     if polished is not None:  # the open-loop windows are a sample: their measurements hardly overlap
         x, jac, fun = polished
         n_used = n_distinct = int(np.count_nonzero(fun))
@@ -671,10 +673,11 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
                      extra={"conditioning": jm.conditioning})
 
 
-def _polish(jm, tl, ol: OpenLoop, thetas, lo, hi, scale, counter, score, progress):
+def _polish(jm, tl, ol: OpenLoop, thetas, lo, hi, scale, counter, score, progress, known=None):
     """The fit refined on the open-loop errors of ``ol`` from the best-scored of ``thetas`` (the window fit's
-    solution first): (theta, Jacobian, residuals), or None when the window fit's solution stands (nothing
-    lowers ``score`` below it). Without a score the polish starts from the window fit's solution."""
+    solution first; ``known``: {index: score} already computed): (theta, Jacobian, residuals), or None when
+    the window fit's solution stands (nothing lowers ``score`` below it). Without a score the polish starts
+    from the window fit's solution."""
 
     def errors(held):
         with np.errstate(all="ignore"):
@@ -682,7 +685,9 @@ def _polish(jm, tl, ol: OpenLoop, thetas, lo, hi, scale, counter, score, progres
         return np.nan_to_num(e, nan=DIVERGED_MM, posinf=DIVERGED_MM, neginf=-DIVERGED_MM), solve
 
     residual = HeldJacobian(jm, errors, counter)
-    scored = [_scored(jm, th, score) for th in (thetas if score is not None else thetas[:1])]
+    known = known or {}
+    scored = [known[i] if i in known else _scored(jm, th, score)
+              for i, th in enumerate(thetas if score is not None else thetas[:1])]
     first = int(np.argmin(scored))
     before, theta = scored[first], jm.clip(thetas[first])
     r = least_squares(residual, theta, jac=residual.jac, bounds=(lo, hi), x_scale=scale, method="trf",
