@@ -129,7 +129,10 @@ class Polyline:
         j = np.clip(np.searchsorted(arcs, s_m, side="right") - 1, 0, self.segments - 1)
         size = self.lengths[j]
         frac = np.divide(s_m - arcs[j], size, out=np.zeros_like(s_m), where=size > 0)
-        return self.starts[j] + frac[:, None] * self.vectors[j]
+        points = self.starts[j] + frac[:, None] * self.vectors[j]
+        if not self.closed:
+            points[s_m >= arcs[-1]] = self.end
+        return points
 
 
 def polyline(points_m: np.ndarray, closed: bool, back: int, ahead: int) -> Polyline:
