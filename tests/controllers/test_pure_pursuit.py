@@ -16,7 +16,7 @@ from test_controllers_mpc_qp import swimmer_like
 from cosim.contract.paths import ReferencePath
 from cosim_plugins.controllers.mpc import MPCController
 from cosim_plugins.controllers.pure_pursuit import PurePursuit
-from cosim_plugins.paths.shapes import SPACING_M, Circle, Helix, HelixRacetrack, Racetrack
+from cosim_plugins.paths.shapes import SPACING_M, Circle, Helix, HelixRacetrack, Racetrack, RotatingCircle
 
 LOOKAHEAD_M, GAIN_S = 9e-3, 0.001
 UM = 1e-6
@@ -184,3 +184,29 @@ def test_the_mpc_path_reference_walks_on_from_the_projection(monkeypatch):
             assert np.allclose(r, line.at_arc(s)[0], rtol=0.0, atol=1e-15)
         nudged = mpc.horizon_reference(0.0, p + [UM, 0.0, 0.0], velocity)
         assert np.abs(nudged - refs).max() < 2 * UM
+
+
+class Redrawn(RotatingCircle):
+    """The rotating circle without its rigid motion: the tracker rebuilds it at every time."""
+
+    def motion(self, t_s):
+        return None
+
+
+def test_a_rigidly_moving_path_is_searched_in_its_own_frame():
+    path, redrawn = RotatingCircle(angle_deg=20.0), Redrawn(angle_deg=20.0)
+    rng = np.random.default_rng(5)
+    for t in (0.0, 0.13, 0.77, 1.4):
+        rotation, offset = path.motion(t)
+        assert np.allclose(path.points(0.0) @ rotation.T + offset, path.points(t), rtol=0.0, atol=1e-15)
+    fast, slow = PurePursuit(path), PurePursuit(redrawn)
+    velocity = np.array([0.0, 0.03, 0.01])
+    for k in range(60):
+        t = 0.02 * k
+        p = path.points(t)[(5 * k) % 400] + 5e-4 * rng.standard_normal(3)
+        ours, theirs = fast.reference(p, velocity, t), slow.reference(p, velocity, t)
+        assert fast.index == slow.index and ours[2] == theirs[2]
+        for a, b in zip(ours[:2], theirs[:2]):
+            assert np.allclose(a, b, rtol=0.0, atol=1e-15)
+        assert np.allclose(fast.along(np.array([0.0, 0.01]), t), slow.along(np.array([0.0, 0.01]), t),
+                           rtol=0.0, atol=1e-15)
