@@ -20,6 +20,7 @@ across its start is a slice like any other.
 
 from __future__ import annotations
 
+import bisect
 import functools
 from dataclasses import dataclass
 
@@ -98,29 +99,36 @@ class Polyline:
         k = int(c.argmin())
         return (lo + k + self.ext_offset) % self.segments, float(t[k])
 
+    @functools.cached_property
+    def _rows(self) -> tuple[list, list, list]:
+        """Per segment as Python floats, for the scalar lookups every tick: (start x, y, z, vector
+        x, y, z) rows, the lengths [m], and ``arcs`` [m]."""
+        return np.hstack([self.starts, self.vectors]).tolist(), self.lengths.tolist(), self.arcs.tolist()
+
     def point(self, segment: int, fraction: float) -> np.ndarray:
         """The point (3,) [m] at ``fraction`` along ``segment``."""
-        x, y, z = self.starts[segment].tolist()
-        u, v, w = self.vectors[segment].tolist()
+        x, y, z, u, v, w = self._rows[0][segment]
         return np.array((x + fraction * u, y + fraction * v, z + fraction * w))
 
     def arc(self, segment: int, fraction: float) -> float:
         """The arc length [m] from vertex 0 to the point at ``fraction`` along ``segment``."""
-        return self.arcs.item(segment) + fraction * self.lengths.item(segment)
+        _, lengths, arcs = self._rows
+        return arcs[segment] + fraction * lengths[segment]
 
     def at_arc(self, s_m: float) -> tuple[np.ndarray, bool]:
         """``(point (3,) [m], past_end)``: the point at arc length ``s_m`` [m] from vertex 0
         (a closed path wraps; an open one stops at its last vertex, ``past_end`` True there)."""
-        total = self.arcs.item(-1)
+        _, lengths, arcs = self._rows
+        total = arcs[-1]
         if self.closed:
             s_m %= total
         elif s_m >= total:
             return self.end.copy(), True
         elif s_m <= 0.0:
             return self.starts[0].copy(), False
-        j = min(int(self.arcs.searchsorted(s_m, side="right")) - 1, len(self.lengths) - 1)
-        size = self.lengths.item(j)
-        return self.point(j, (s_m - self.arcs.item(j)) / size if size > 0 else 0.0), False
+        j = min(bisect.bisect_right(arcs, s_m) - 1, len(lengths) - 1)
+        size = lengths[j]
+        return self.point(j, (s_m - arcs[j]) / size if size > 0 else 0.0), False
 
     def at_arcs(self, s_m: np.ndarray) -> np.ndarray:
         """The points (k, 3) [m] at arc lengths ``s_m`` (k,) [m], as :meth:`at_arc` does one."""
