@@ -27,7 +27,7 @@ from cosim_plugins.coil_driver.interlocks import Limits, ThermalBudget, limit_sc
 from cosim_plugins.coil_driver.inverse import InverseMagnetics
 from cosim_plugins.controllers.pi import PIController
 from cosim_plugins.controllers.pure_pursuit import WINDOW_AHEAD, WINDOW_BACK, PurePursuit
-from cosim_plugins.paths.shapes import Circle, Racetrack
+from cosim_plugins.paths.shapes import Circle, Helix, Racetrack
 
 DT = 0.02
 
@@ -105,29 +105,39 @@ def test_one_standard_normal_call_is_the_stream_of_the_two_normal_calls():
 # ---------------------------------------------------------------- pure pursuit
 
 
-def closest_reference(pts: np.ndarray, position: np.ndarray, start: int, stop: int) -> int:
-    """The window search as an (m, 3) fancy-indexed formulation."""
+def closest_reference(pts: np.ndarray, closed: bool, position: np.ndarray, start: int, stop: int):
+    """The window search as an (m, 3) fancy-indexed formulation: ``(segment, fraction)`` of the
+    projection onto the segments ``start .. stop - 1`` (mod n on a closed path) nearest ``position``."""
     n = len(pts)
-    d = pts[np.arange(start, stop) % n] - position
-    d *= d
-    return (start + int((d[:, 0] + d[:, 1] + d[:, 2]).argmin())) % n
+    seg = np.arange(start, stop) % n if closed else np.arange(max(start, 0), min(stop, n - 1))
+    a, b = pts[seg], pts[(seg + 1) % n]
+    v = b - a
+    t = np.clip(((position - a) * v).sum(axis=1) / (v * v).sum(axis=1), 0.0, 1.0)
+    d = position - (a + t[:, None] * v)
+    k = int((d * d).sum(axis=1).argmin())
+    return int(seg[k]), float(t[k])
 
 
-@pytest.mark.parametrize("path", [Racetrack(), Circle(radius_mm=3.0)], ids=["racetrack", "short_circle"])
+@pytest.mark.parametrize("path", [Racetrack(), Circle(radius_mm=3.0), Helix()],
+                         ids=["racetrack", "short_circle", "helix"])
 def test_the_window_search_matches_the_fancy_indexed_one_across_the_start(path):
     pts = path.points(0.0)
     n = len(pts)
+    segments = n if path.closed else n - 1
     rng = np.random.default_rng(3)
     pursuit = PurePursuit(path)
     first = pts[5] + 1e-4 * rng.standard_normal(3)
     pursuit.reference(first, np.zeros(3), 0.0)
-    assert pursuit.index == closest_reference(pts, first, 0, n)
-    for index in [0, 1, WINDOW_BACK - 1, WINDOW_BACK, n // 2, n - WINDOW_AHEAD, n - WINDOW_AHEAD + 1, n - 1]:
-        index %= n
+    assert pursuit.index == closest_reference(pts, path.closed, first, 0, segments)[0]
+    for index in [0, 1, WINDOW_BACK - 1, WINDOW_BACK, n // 2, n - WINDOW_AHEAD, n - WINDOW_AHEAD + 1, n - 2]:
+        index %= segments
         position = pts[(index + 7) % n] + 1e-3 * rng.standard_normal(3)
         pursuit.index = index
-        pursuit.reference(position, np.zeros(3), 0.0)
-        assert pursuit.index == closest_reference(pts, position, index - WINDOW_BACK, index + WINDOW_AHEAD)
+        _, closest, _ = pursuit.reference(position, np.zeros(3), 0.0)
+        segment, fraction = closest_reference(pts, path.closed, position, index - WINDOW_BACK, index + WINDOW_AHEAD)
+        assert pursuit.index == segment
+        expected = pts[segment] + fraction * (pts[(segment + 1) % n] - pts[segment])
+        assert np.allclose(closest, expected, rtol=0.0, atol=1e-15)
 
 
 # ---------------------------------------------------------------- PI

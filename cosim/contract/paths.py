@@ -35,6 +35,13 @@ class ReferencePath:
             self._cache = base if self.spacing_m is None else resample(base, self.spacing_m, self.closed)
         return self._cache
 
+    def motion(self, t_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """For a path that moves rigidly: ``(rotation (3, 3), offset (3,) [m])`` with
+        ``points(t_s) = points(0) @ rotation.T + offset``, so a consumer can work on the path at
+        t = 0 and move positions into its frame instead of the path's points every step; None
+        (the default) for a path that does not say so."""
+        return None
+
     @property
     def length_m(self) -> float:
         """The polyline's length at t = 0 [m] (the closing segment included if ``closed``)."""

@@ -62,7 +62,7 @@ those columns (identity on p, none from p into v): racetrack 1.07 -> 0.53 mm
 (lab, 30 s, seed 1, PI 0.80 mm).
 
 The pure-pursuit tracker is stepped every period in all three (its closest
-index orders the path following).
+point orders the path following; ``path`` walks on from it).
 """
 
 from __future__ import annotations
@@ -280,10 +280,4 @@ class MPCController(PathController):
             s = np.minimum(step_m * k, dist)
             cross = (self.p["cross_gain"] * self.dt * k)[:, None] * (closest - pos)
             return pos + s[:, None] * (to_target / max(dist, 1e-12)) + cross
-        pts = self.path.points(t)
-        n = len(pts)
-        spacing = np.linalg.norm(pts[1] - pts[0])
-        ahead = np.rint((self.p["lead_mm"] * 1e-3 + step_m * np.arange(1, N + 1)) / spacing).astype(int)
-        idx = self.pursuit.index + ahead
-        idx = idx % n if self.path.closed else np.clip(idx, 0, n - 1)
-        return pts[idx]
+        return self.pursuit.along(self.p["lead_mm"] * 1e-3 + step_m * np.arange(1, N + 1), t)

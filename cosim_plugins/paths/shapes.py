@@ -88,6 +88,10 @@ class RotatingCircle(Circle):
         angle = np.radians(self.angle0_deg) + 2 * np.pi * self.rate_hz * t_s
         return self._flat @ rotation_y(angle).T
 
+    def motion(self, t_s: float):
+        """Rigid: ``points(t) = points(0) @ R.T``, R the rotation about y by ``360 * rate_hz * t``."""
+        return rotation_y(2 * np.pi * self.rate_hz * t_s), np.zeros(3)
+
 
 class Helix(Path):
     """Helix about z: ``turns`` turns of radius ``radius_mm`` climbing ``height_mm`` centred at z = 0.
