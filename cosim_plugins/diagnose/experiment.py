@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim_plugins.diagnose.excitation import Excitation, candidates
+from cosim_plugins.diagnose.result import ExperimentFiles, ExperimentPath, ExperimentResult
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.timeline import Timeline
 from cosim_plugins.raw_log import Log
@@ -67,14 +68,14 @@ class Experiment:
         t = np.arange(int(round(self.excitation.duration_s / self.dt_s))) * self.dt_s
         return t, self.excitation.freq_hz(t)
 
-    def summary(self) -> dict:
+    def summary(self) -> ExperimentResult:
         """diagnosis.json's ``experiment``."""
-        return {"members": self.members, "kind": self.excitation.describe(), "params": self.excitation.params(),
-                "duration_s": self.excitation.duration_s, "separation_mm": self.separation_mm,
-                "floor_mm": self.floor_mm,
-                "separation_over_floor": self.separation_mm / self.floor_mm if self.floor_mm else None,
-                "path": {"plugin": "circle", "radius_mm": self.radius_mm, "center_mm": self.center_mm},
-                "files": {"scenario": SCENARIO_FILE, "excitation": EXCITATION_FILE}, "tried": self.tried}
+        return ExperimentResult(
+            members=self.members, kind=self.excitation.describe(), params=self.excitation.params(),
+            duration_s=self.excitation.duration_s, separation_mm=self.separation_mm, floor_mm=self.floor_mm,
+            separation_over_floor=self.separation_mm / self.floor_mm if self.floor_mm else None,
+            path=ExperimentPath(plugin="circle", radius_mm=self.radius_mm, center_mm=self.center_mm),
+            files=ExperimentFiles(scenario=SCENARIO_FILE, excitation=EXCITATION_FILE), tried=self.tried)
 
     def write(self, out_dir) -> list[Path]:
         """Write ``experiment.yaml`` and ``experiment_excitation.csv`` into ``out_dir``; returns their paths."""

@@ -127,7 +127,7 @@ def test_time_block_split_keeps_halves_apart():
     train, test, info = split_logs([log])
     tr, te = np.isfinite(train[0].p_mm[:, 0]), np.isfinite(test[0].p_mm[:, 0])
     assert not np.any(tr & te) and np.all(tr | te)
-    assert te.mean() == pytest.approx(1 / 3, abs=0.05) and info["block_s"] == BLOCK_S
+    assert te.mean() == pytest.approx(1 / 3, abs=0.05) and info.block_s == BLOCK_S
 
 
 def test_a_latency_reads_the_path_before_each_window(synthetic):

@@ -4,20 +4,64 @@ fit notes. The thresholds are written as numbers here, not read from the module,
 
 from __future__ import annotations
 
+import types
+from dataclasses import MISSING, fields, is_dataclass
+from typing import Union, get_args, get_origin, get_type_hints
+
 import numpy as np
 import pytest
 
+from cosim_plugins.diagnose import verdict as verdict_module
+from cosim_plugins.diagnose.render import to_json
+from cosim_plugins.diagnose.result import DiagnosisResult, load
 from cosim_plugins.diagnose.verdict import (
     _block_t,
     explained_share,
-    fit_notes,
     paired_t,
     paired_t_horizons,
     passes,
-    verdict,
 )
 
 K = "1.0"
+
+
+def _complete(tp, value):
+    """``value`` (diagnosis.json's form of a ``tp``) with every field it leaves out set to an empty value of its
+    type: the hand-made results below hold only what the verdict reads."""
+    origin = get_origin(tp)
+    if origin in (Union, types.UnionType):
+        inner = [a for a in get_args(tp) if a is not type(None)]
+        return None if value is None else _complete(inner[0], value) if len(inner) == 1 else value
+    if origin is list and get_args(tp):
+        return [_complete(get_args(tp)[0], v) for v in value]
+    if is_dataclass(tp):
+        hints = get_type_hints(tp)
+        out = dict(value)
+        for f in fields(tp):
+            if f.name in out:
+                out[f.name] = _complete(hints[f.name], out[f.name])
+            elif f.default is MISSING and f.default_factory is MISSING:
+                optional = type(None) in get_args(hints[f.name])
+                out[f.name] = None if optional else _complete(hints[f.name], _EMPTY.get(hints[f.name], {}))
+        return out
+    return value
+
+
+_EMPTY = {str: "", int: 0, float: 0.0, bool: True, list: [], dict: {}}
+
+
+def typed(r: dict) -> DiagnosisResult:
+    """A hand-made result dict as the typed result the verdict reads."""
+    return load(DiagnosisResult, _complete(DiagnosisResult, r))
+
+
+def verdict(r: dict, key: str) -> dict:
+    """The verdict of a hand-made result, in diagnosis.json's form."""
+    return to_json(verdict_module.verdict(typed(r), key))
+
+
+def fit_notes(r: dict) -> list:
+    return verdict_module.fit_notes(typed(r))
 
 
 def result(err=1.0, floor=0.4, steps=(), ranking=(), joint_left=None, **extra):
@@ -489,7 +533,7 @@ def test_the_effects_given_the_discovered_form_in_words_step_by_step():
     r = result(1.0, None)
     r["stepwise"]["given_discovered"] = {"steps": [step("actuation_lag", 0.5, 0.25, t=7.5),
                                                    step("heading_lag", 0.3, 0.2, group=("sensor_latency",))]}
-    assert _given_text(r, K) == (
+    assert _given_text(typed(r), K) == (
         " Given the discovered form, actuation_lag explains part of what is left: refitted with it, the held-out "
         "error at 1.0 s falls from 0.50 to 0.25 mm (50%; t = 7.5). Fitted: k = 2.00 ± 0.10 mm/s."
         " Given the discovered form, heading_lag or sensor_latency explain part of what is left about equally well "
@@ -497,4 +541,4 @@ def test_the_effects_given_the_discovered_form_in_words_step_by_step():
         "named.")
     r = result(1.0, 0.3)
     r["stepwise"]["given_discovered"] = {"steps": [step("actuation_lag", 0.5, 0.2)]}
-    assert "(60%; t = 6.0; 100% of the excess over the noise floor)" in _given_text(r, K)  # 0.3 / 0.2 capped
+    assert "(60%; t = 6.0; 100% of the excess over the noise floor)" in _given_text(typed(r), K)  # 0.3 / 0.2 capped
