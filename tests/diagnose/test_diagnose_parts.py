@@ -156,6 +156,9 @@ def test_a_latency_reads_the_path_before_each_window(synthetic):
 
 def test_verdict_names_a_look_alike_group_not_a_member():
     """A step the logs cannot tell from its rival is named as the group; the same step alone is named."""
+    from hand_made import typed
+
+    from cosim_plugins.diagnose.render import to_json
     from cosim_plugins.diagnose.verdict import verdict
 
     def result(group):
@@ -172,11 +175,11 @@ def test_verdict_names_a_look_alike_group_not_a_member():
                                                                       "rollout_mm": {"1.0": 0.64},
                                                                       "reduction": {"1.0": 0.36}}}}
 
-    tie = verdict(result(True), "1.0")
+    tie = to_json(verdict(typed(result(True)), "1.0"))
     assert tie["effect"] is None and tie["effects"] == []
     assert tie["lookalikes"] == [["actuation_lag", "sensor_latency"]]
     assert "None of them is named" in tie["explanation"] and "t = 1.2 at 1.0 s" in tie["explanation"]
-    named = verdict(result(False), "1.0")
+    named = to_json(verdict(typed(result(False)), "1.0"))
     assert named["effect"] == "actuation_lag" and named["effects"] == ["actuation_lag"] and not named["lookalikes"]
     assert "actuation_lag explains the error" in named["explanation"]
 
