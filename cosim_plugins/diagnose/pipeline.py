@@ -239,6 +239,8 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
               if loc_sum["rollout_mm"][h] is not None}
     loc = localise(features, after_all if after else err_all, horizon_means=excess)
     loc["model"] = f"+ {' + '.join(s.add)}" if after else s.model
+    stepwise = stepwise_result(selection, s.reference, s.max_effects)
+    drift_out = _drift(s, split, selection, fitter, train_open, ranking, stepwise, floor[s.reference], say)
     result = DiagnosisResult(
         logs=[str(p) for p in log_paths], validate=[str(p) for p in validate_paths], split=split,
         dt_s=dt, horizons_s=s.horizons, reference_horizon_s=s.horizons[s.reference],
@@ -251,11 +253,9 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         noise=Noise(sigma_mm=dict(zip("xyz", map(float, sigma))) if sigma is not None else None,
                     floor_mm=floor, tau_s=tau_floor, tau_from=tau_from),
         noise_floor_mm=floor[s.reference],
-        localisation=Localisation(**loc), added=added_out, ranking=ranking,
-        stepwise=stepwise_result(selection, s.reference, s.max_effects),
+        localisation=Localisation(**loc), added=added_out, ranking=[rank_entry(e) for e in ranking],
+        stepwise=stepwise, drift=drift_out,
     )
-    result.drift = _drift(s, split, selection, fitter, train_open, result, say)
-    result.ranking = [rank_entry(e) for e in ranking]
     result.fit_notes = fit_notes(result)
     result.verdict = verdict(result, s.reference)
     source = None
@@ -297,12 +297,12 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                      added_model=after.model if after else None, experiment=experiment)
 
 
-def _drift(s: Settings, split: Split, selection: Selection, fitter: Fitter, train_starts,
-           result: DiagnosisResult, say) -> DriftResult:
-    """diagnosis.json's ``drift`` (see :mod:`.drift`); with ``--per-log`` its fit joins the ranking (the rank
-    entries of ``result.ranking`` are still :mod:`.stepwise`'s dicts here). A chosen effect that the drift makes
-    unnecessary leaves ``result.stepwise.steps`` for its ``dropped``."""
-    final, ranking = selection.final, result.ranking
+def _drift(s: Settings, split: Split, selection: Selection, fitter: Fitter, train_starts, ranking: list,
+           sw: Stepwise, floor_mm: float | None, say) -> DriftResult:
+    """The result's ``drift`` (see :mod:`.drift`); with ``--per-log`` its fit joins ``ranking`` (the first round's
+    rank entries, :mod:`.stepwise`'s dicts). A chosen effect that the drift makes unnecessary leaves ``sw.steps``
+    and ``selection.steps`` for ``sw.dropped``; ``floor_mm``: the noise floor at the reference horizon."""
+    final = selection.final
     if not (s.drift or s.per_log is not None or s.t_start is not None):  # --per-log, --t-start ask for it
         return DriftResult(skipped="--no-drift")
     if split.kind != "time_blocks":
@@ -312,13 +312,11 @@ def _drift(s: Settings, split: Split, selection: Selection, fitter: Fitter, trai
         return DriftResult(skipped=f"the {final.model.host.name} model has no base parameters to fit per log")
     chosen = [st.effects[0] for st in selection.steps]
     try:
-        out = drift.analyse(final, fitter, train_starts, s.per_log, s.t_start, chosen,
-                            result.noise.floor_mm[s.reference], say)
+        out = drift.analyse(final, fitter, train_starts, s.per_log, s.t_start, chosen, floor_mm, say)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     gone = {g["effect"]: g for g in out.given_drift or () if not g["kept"]}
     if gone:
-        sw = result.stepwise
         sw.dropped += [Dropped(effect=n, reduction=g["reduction"], t_stat=g["t_stat"], given="drift")
                        for n, g in gone.items()]
         sw.steps = [st for st in sw.steps if st.effects[0] not in gone]
