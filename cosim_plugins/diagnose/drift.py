@@ -62,7 +62,7 @@ from cosim_plugins.diagnose.per_unit import (
     trend_fit,
     within_logs,
 )
-from cosim_plugins.diagnose.result import DriftResult
+from cosim_plugins.diagnose.result import DriftExplains, DriftResult, GivenDrift
 
 MIN_REDUCTION = 0.05
 MIN_T = 3.0
@@ -212,7 +212,8 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
     out.words = [flagged[f].words for f in order_flags]
     if order_flags:
         shown = flagged[order_flags[0]]  # between before within: a drift between logs explains more
-        out.explains = {"fit": shown.label, **{k: shown.figures[k] for k in ("rollout_mm", "reduction", "t_stat")}}
+        out.explains = DriftExplains(fit=shown.label, **{k: shown.figures[k] for k in ("rollout_mm", "reduction",
+                                                                                       "t_stat")})
         if chosen:
             out.given_drift = _effects_given_drift(final, shown.fit, shown.remake, fitter, chosen, floor, say)
     return out
@@ -246,7 +247,7 @@ def _effects_given_drift(final, fit, remake, fitter, chosen, floor, say) -> list
     effect and its drift is compared with the model refitted without the effect and its drift fitted again, by
     the verdict's tests of the drop (:func:`~.verdict.passes`). Refitting the drift too matters: offsets fitted
     beside an effect have already given it part of their work.
-    [{"effect", "reduction", "t_stat", "kept"}]."""
+    [GivenDrift per chosen effect]."""
     from cosim_plugins.diagnose.fitting import reduction_of
     from cosim_plugins.diagnose.verdict import passes
 
@@ -262,7 +263,7 @@ def _effects_given_drift(final, fit, remake, fitter, chosen, floor, say) -> list
                  "reduction": reduction_of(before, drifted.summary["rollout_mm"][key]),
                  "t_stat": fitter.paired_t(without.ev[key], drifted.ev[key])}
         entry["kept"] = passes(entry, before, floor, key)
-        out.append({k: entry[k] for k in ("effect", "reduction", "t_stat", "kept")})
+        out.append(GivenDrift(**{k: entry[k] for k in ("effect", "reduction", "t_stat", "kept")}))
     return out
 
 
@@ -285,9 +286,9 @@ def sentence(drift: DriftResult | None, key: str) -> str:
     parts = [("The logs disagree with each other: " if between_flagged else "The plant drifts within the logs: ")
              + "; ".join(drift.words) + "."]
     fit = drift.explains
-    parts.append(f"With {', '.join(drift.params)} fitted as {fit['fit']}, the held-out error at {key} s falls by "
-                 f"{fit['reduction']:.0%} (to {fit['rollout_mm'][key]:.2f} mm; t = {fit['t_stat']:.1f}).")
-    gone = [g["effect"] for g in drift.given_drift or () if not g["kept"]]
+    parts.append(f"With {', '.join(drift.params)} fitted as {fit.fit}, the held-out error at {key} s falls by "
+                 f"{fit.reduction:.0%} (to {fit.rollout_mm[key]:.2f} mm; t = {fit.t_stat:.1f}).")
+    gone = [g.effect for g in drift.given_drift or () if not g.kept]
     if gone:
         parts.append(f"{' and '.join(gone)}, which the search chose before, {'is' if len(gone) == 1 else 'are'} "
                      "not needed once the drift is allowed for.")

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim_plugins.diagnose.excitation import Excitation, candidates
-from cosim_plugins.diagnose.result import ExperimentFiles, ExperimentPath, ExperimentResult
+from cosim_plugins.diagnose.result import ExperimentFiles, ExperimentPath, ExperimentResult, Tried
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.timeline import Timeline
 from cosim_plugins.raw_log import Log
@@ -61,7 +61,7 @@ class Experiment:
     radius_mm: float
     separation_mm: float  # smallest mean separation (over windows and horizons) over the ordered pairs of members
     floor_mm: float | None
-    tried: list = field(default_factory=list)  # [{"excitation", "separation_mm"}] every candidate
+    tried: list = field(default_factory=list)  # [Tried] every candidate
 
     def schedule(self) -> tuple[np.ndarray, np.ndarray]:
         """(t_s (n,), freq_hz (n,)): the spin rate at every control period of the experiment."""
@@ -171,7 +171,7 @@ def design_experiment(step, tl: Timeline, fitter, floor_mm: float | None, say=No
             per = np.array([np.nanmean(norm[truth.log[starts] == k]) for k in range(len(tried))])
             sep = np.minimum(sep, np.nan_to_num(per, nan=0.0))
     best = int(np.argmax(sep))
-    record = [{"excitation": e.describe(), "separation_mm": float(s)} for e, s in zip(tried, sep)]
+    record = [Tried(excitation=e.describe(), separation_mm=float(s)) for e, s in zip(tried, sep)]
     chosen = replace(tried[best], duration_s=sized_duration(float(sep[best]), floor_mm, duration_s))
     say(f"experiment: {chosen.describe()}: the members' predictions differ by {sep[best]:.2f} mm"
         + (f" ({sep[best] / floor_mm:.1f}x the noise floor)" if floor_mm else "")

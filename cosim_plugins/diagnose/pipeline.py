@@ -50,6 +50,7 @@ from cosim_plugins.diagnose.result import (
     Discovered,
     DriftResult,
     Dropped,
+    GroupEvidence,
     Joint,
     Localisation,
     Noise,
@@ -315,9 +316,9 @@ def _drift(s: Settings, split: Split, selection: Selection, fitter: Fitter, trai
         out = drift.analyse(final, fitter, train_starts, s.per_log, s.t_start, chosen, floor_mm, say)
     except ValueError as exc:
         raise UserError(str(exc)) from None
-    gone = {g["effect"]: g for g in out.given_drift or () if not g["kept"]}
+    gone = {g.effect: g for g in out.given_drift or () if not g.kept}
     if gone:
-        sw.dropped += [Dropped(effect=n, reduction=g["reduction"], t_stat=g["t_stat"], given="drift")
+        sw.dropped += [Dropped(effect=n, reduction=g.reduction, t_stat=g.t_stat, given="drift")
                        for n, g in gone.items()]
         sw.steps = [st for st in sw.steps if st.effects[0] not in gone]
         selection.steps = [st for st in selection.steps if st.effects[0] not in gone]
@@ -346,7 +347,8 @@ def stepwise_result(sel: Selection, key: str, max_effects: int) -> Stepwise:
         rounds=[[compact(e) for e in entries] for entries in sel.rounds],
         steps=[StepResult(effects=st.effects, group=st.is_group, rollout_before_mm=st.before.error(key),
                           rollout_mm=st.entry["rollout_mm"][key], reduction=st.entry["reduction"],
-                          t_stat=st.entry["t_stat"], params=st.entry["params"], group_evidence=st.group_evidence)
+                          t_stat=st.entry["t_stat"], params=st.entry["params"],
+                          group_evidence={m: GroupEvidence(**ev) for m, ev in st.group_evidence.items()})
                for st in sel.steps],
         dropped=[Dropped(**d) for d in sel.dropped],
         joint=Joint(effects=sel.chosen, rollout_mm=final,

@@ -223,8 +223,8 @@ def _drift_section(d: DriftResult | None, key: str) -> list[str]:
                   "| quantity | trend within the logs, per minute | t |", "|---|---|---|"]
         lines += [f"| {q} | {v['change_per_min']:+.1%} | {v['slope_t']:.1f} |" for q, v in w["quantities"].items()]
     for g in d.given_drift or ():
-        lines.append(f"- once the drift is in, {g['effect']} lowers the error by {g['reduction']:.0%} "
-                     f"(t = {g['t_stat']:.1f}): " + ("kept" if g["kept"] else "dropped"))
+        lines.append(f"- once the drift is in, {g.effect} lowers the error by {g.reduction:.0%} "
+                     f"(t = {g.t_stat:.1f}): " + ("kept" if g.kept else "dropped"))
     return lines
 
 
@@ -261,7 +261,7 @@ def _stepwise_section(r: DiagnosisResult, key: str) -> list[str]:
                   + f". Run `{exp.files.scenario}` (or apply `{exp.files.excitation}` as the spin-rate "
                   "schedule on the rig), add its log.csv to these logs and diagnose again.", "",
                   "| excitation | separation [mm] |", "|---|---|"]
-        lines += [f"| {x['excitation']} | {_f(x['separation_mm'])} |" for x in exp.tried]
+        lines += [f"| {x.excitation} | {_f(x.separation_mm)} |" for x in exp.tried]
     return lines
 
 

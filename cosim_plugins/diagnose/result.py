@@ -158,11 +158,25 @@ class RoundEntry:
 
 
 @dataclass
+class GroupEvidence:
+    """How far the logs tell a group's leader from a rival (:mod:`.lookalike`): paired t at the reference
+    horizon and over every horizon (positive: the leader is better), their predictions' mean distance [mm] over
+    all held-out windows and on the log where they differ most, and what the rival ``adds`` (reduction, with
+    its t ``adds_t``) once refitted together with the leader."""
+
+    t_stat: float
+    t_horizons: float
+    differ_mm: float
+    differ_log_mm: float | None = _optional()
+    adds: float | None = _optional()
+    adds_t: float | None = _optional()
+
+
+@dataclass
 class StepResult:
     """One round's choice: ``effects`` one name, or a look-alike group (best member first, ``group`` True);
     the errors at the reference horizon before and after it [mm], its ``reduction`` and ``t_stat`` against the
-    model before, the best member's ``params``; ``group_evidence`` {rival: {"t_stat", "t_horizons",
-    "differ_mm", "differ_log_mm", "adds", "adds_t", ...}} for a group."""
+    model before, the best member's ``params``; ``group_evidence`` {rival: evidence} for a group."""
 
     effects: list
     group: bool
@@ -171,7 +185,7 @@ class StepResult:
     reduction: float
     t_stat: float
     params: dict
-    group_evidence: dict
+    group_evidence: dict[str, GroupEvidence]
 
 
 @dataclass
@@ -210,13 +224,36 @@ class Stepwise:
 
 
 @dataclass
+class DriftExplains:
+    """The drift fit a flag shows (``fit``: "per log", "a trend from log to log", "a trend within the logs"):
+    its held-out ``rollout_mm`` {horizon: error [mm]}, ``reduction`` and ``t_stat`` at the reference horizon."""
+
+    fit: str
+    rollout_mm: Horizons
+    reduction: float
+    t_stat: float
+
+
+@dataclass
+class GivenDrift:
+    """A chosen effect checked again once the drift is in: its ``reduction`` and ``t_stat``, and whether it
+    still passes the verdict's tests (``kept``)."""
+
+    effect: str
+    reduction: float
+    t_stat: float
+    kept: bool
+
+
+@dataclass
 class DriftResult:
     """The drift test (:mod:`.drift`). Either ``skipped`` (why) with nothing ``flagged``, or: ``params`` fitted
     per log and per block of time, ``order`` of the logs ("file order" or "t_start"), ``flagged`` quantities
     ("within:NAME" for a trend within the logs), ``per_log`` {param: [value per log]}, ``t`` {quantity: trend
     t}, ``words`` one sentence per flag; ``between`` / ``within`` the per-log and per-block fits' held-out
-    figures and per-quantity tests; ``explains`` the flag's fit ({"fit", "rollout_mm", "reduction",
-    "t_stat"}); ``given_drift`` [{"effect", "reduction", "t_stat", "kept"}] each chosen effect checked again."""
+    figures and per-quantity tests (dicts: {"rollout_mm", "reduction", "t_stat", "quantities": {quantity:
+    {"values", "std", "p", "slope_t", ...}}, ...}); ``explains`` the flag's fit; ``given_drift`` each chosen
+    effect checked again."""
 
     params: list | None = _optional()
     order: str | None = _optional()
@@ -226,8 +263,8 @@ class DriftResult:
     words: list | None = _optional()
     between: dict | None = _optional()
     within: dict | None = _optional()
-    explains: dict | None = _optional()
-    given_drift: list | None = _optional()
+    explains: DriftExplains | None = _optional()
+    given_drift: list[GivenDrift] | None = _optional()
     skipped: str | None = _optional()
 
 
@@ -271,10 +308,18 @@ class ExperimentFiles:
 
 
 @dataclass
+class Tried:
+    """An excitation the experiment design tried (words) and the predicted ``separation_mm`` of the members."""
+
+    excitation: str
+    separation_mm: float
+
+
+@dataclass
 class ExperimentResult:
     """The experiment designed to tell a look-alike group's ``members`` apart (:mod:`.experiment`): the
     excitation's ``kind`` (words) and ``params``, ``duration_s``, the predicted ``separation_mm`` against the
-    ``floor_mm`` and their ratio, every excitation ``tried`` ([{"excitation", "separation_mm"}])."""
+    ``floor_mm`` and their ratio, every excitation ``tried``."""
 
     members: list
     kind: str
@@ -285,7 +330,7 @@ class ExperimentResult:
     separation_over_floor: float | None
     path: ExperimentPath
     files: ExperimentFiles
-    tried: list
+    tried: list[Tried]
 
 
 @dataclass
@@ -381,6 +426,8 @@ def _load_value(tp, value, where: str):
         return _load_value(inner[0], value, where) if len(inner) == 1 else value
     if origin is list and get_args(tp):
         return [_load_value(get_args(tp)[0], v, f"{where}[{i}]") for i, v in enumerate(value)]
+    if origin is dict and get_args(tp):
+        return {k: _load_value(get_args(tp)[1], v, f"{where}.{k}") for k, v in value.items()}
     if is_dataclass(tp):
         return load(tp, value, where)
     return value

@@ -109,7 +109,7 @@ def verdict(result: DiagnosisResult, key: str) -> Verdict:
 def _drift_left(result: DiagnosisResult, key: str) -> str:
     """What the drifting model leaves, against the noise floor."""
     floor = result.noise.floor_mm[key]
-    left = result.drift.explains["rollout_mm"][key]
+    left = result.drift.explains.rollout_mm[key]
     if floor is None:
         return f"With the drift in, {left:.2f} mm remain at {key} s."
     return (f"With the drift in, {left:.2f} mm remain at {key} s against a noise floor of {floor:.2f} mm"
@@ -217,10 +217,9 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
             parts.append(f"{st.effects[0]} explains {'the' if len(sw.steps) == 1 else 'part of the'} error: "
                          f"refitted with it, {drop}. Fitted: {params_text(st.params)}.")
             continue
-        rivals = ", ".join(f"{m} (t = {ev['t_stat']:.1f} at {key} s, {ev['t_horizons']:.1f} over all horizons; "
-                           f"predictions {ev.get('differ_log_mm', ev['differ_mm']):.2f} mm apart on the log where "
-                           f"they differ most; refitted together it adds "
-                           f"{ev['adds']:+.0%})"
+        rivals = ", ".join(f"{m} (t = {ev.t_stat:.1f} at {key} s, {ev.t_horizons:.1f} over all horizons; "
+                           f"predictions {ev.differ_mm if ev.differ_log_mm is None else ev.differ_log_mm:.2f} mm "
+                           f"apart on the log where they differ most; refitted together it adds {ev.adds:+.0%})"
                            for m, ev in st.group_evidence.items())
         parts.append(f"{' or '.join(st.effects)} explain the error about equally well: refitted with "
                      f"{st.effects[0]}, {drop}, and these logs cannot tell it from {rivals}. None of them is "
