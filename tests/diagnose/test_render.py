@@ -65,3 +65,14 @@ def test_a_key_that_does_not_fit_is_named_with_where_it_is():
     del data["verdict"]["status"]
     with pytest.raises(ValueError, match=r"diagnosis.json.verdict: missing key 'status' of Verdict"):
         load(DiagnosisResult, data)
+
+
+def test_the_report_lists_each_effect_checked_again_once_the_drift_is_in():
+    from cosim_plugins.diagnose.result import GivenDrift
+
+    _, result = _case("drift")
+    result.drift.given_drift = [GivenDrift(effect="wall_drag", reduction=0.02, t_stat=0.5, kept=False)]
+    lines = markdown(result).splitlines()
+    assert "- once the drift is in, wall_drag lowers the error by 2% (t = 0.5): dropped" in lines
+    assert to_json(result)["drift"]["given_drift"] == [{"effect": "wall_drag", "reduction": 0.02, "t_stat": 0.5,
+                                                        "kept": False}]

@@ -508,3 +508,11 @@ def test_the_effects_given_the_discovered_form_in_words_step_by_step():
     r = result(1.0, 0.3)
     r["stepwise"]["given_discovered"] = {"steps": [step("actuation_lag", 0.5, 0.2)]}
     assert "(60%; t = 6.0; 100% of the excess over the noise floor)" in _given_text(typed(r), K)  # 0.3 / 0.2 capped
+
+
+def test_an_effect_the_drift_makes_unnecessary_is_said_so():
+    gone = {**drift(0.5), "given_drift": [{"effect": "wall_drag", "reduction": 0.02, "t_stat": 0.5, "kept": False},
+                                          {"effect": "background_flow", "reduction": 0.4, "t_stat": 6.0, "kept": True}]}
+    text = verdict(result(2.0, 0.4, drift=gone), K)["explanation"]
+    assert "wall_drag, which the search chose before, is not needed once the drift is allowed for." in text
+    assert "background_flow, which" not in text
