@@ -23,7 +23,8 @@ from cosim_plugins.identify.fit import json_default
 
 
 def to_json(result: DiagnosisResult) -> dict:
-    """diagnosis.json's content: every field under its name, optional sections (None) left out."""
+    """diagnosis.json's content: every field under its name, optional sections (None) left out. Any part of a
+    result (a :class:`~.result.Split`, a :class:`~.result.Verdict`, ...) gives its own section."""
     return _plain(result)
 
 
