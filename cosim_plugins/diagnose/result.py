@@ -124,7 +124,7 @@ class RunnerUp:
 class RankEntry:
     """A candidate refitted jointly with the reference model (the first round of the stepwise search).
 
-    ``kind``: the effect's kind ("force", "transform", ... or "drift" for the --per-log fit);
+    ``kind``: the effect's kind ("force", "input", "sensor", or "drift" for the --per-log fit);
     ``rollout_mm`` {horizon: error [mm]}; ``reduction`` at the reference horizon, ``reduction_by_horizon``
     at each; ``t_stat`` against the reference; ``identifiable``: its parameters change the predictions;
     ``fit`` the fit's figures ({"rms_mm", "evaluations", "status", "start"}); ``doc`` the effect's words;
