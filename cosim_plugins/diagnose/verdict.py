@@ -233,7 +233,7 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
     if len(sw.steps) > 1:
         j = sw.joint
         parts.append(f"Together ({' + '.join(j.effects)}) they lower the held-out error at {key} s from "
-                     f"{sw.steps[0].rollout_before_mm:.2f} to {j.rollout_mm[key]:.2f} mm "
+                     f"{result.effects_model.rollout_mm[key]:.2f} to {j.rollout_mm[key]:.2f} mm "
                      f"({j.reduction[key]:.0%}).")
     for d in sw.dropped:
         parts.append(f"{d.effect} was dropped once "
