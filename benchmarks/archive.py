@@ -62,10 +62,10 @@ def _child(args) -> int:
     wall = time.perf_counter() - t0
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     workers = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
-    v = diag.result["verdict"]
+    v = diag.json["verdict"]
     print(json.dumps({"wall_s": round(wall, 1), "peak_mb": round(own + workers, 1), "effects": v["effects"],
                       "lookalikes": v["lookalikes"], "status": v["status"],
-                      "drift_flagged": diag.result["drift"]["flagged"],
+                      "drift_flagged": diag.json["drift"]["flagged"],
                       "rows": int(diag.timeline.n)}))
     return 0
 

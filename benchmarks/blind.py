@@ -142,7 +142,7 @@ def _diagnose(logs) -> tuple[dict, object]:
 
     plugins.reset()
     d = run(logs, settings=Settings(discover=True))  # one process: the bench runs cases side by side
-    diag = d.result
+    diag = d.json
     key = next(k for k, v in diag["horizons_s"].items() if v == diag["reference_horizon_s"])
     ranked = [e for e in diag["ranking"] if e.get("identifiable", True)]
     top = ranked[0] if ranked else None
@@ -169,7 +169,7 @@ def _true_refit(logs, source: str, name: str, path: Path) -> tuple[float, dict]:
 
     path.write_text(source)
     plugins.reset()
-    true = run(logs, settings=Settings(effects_files=[str(path)], add=[name], candidates=[])).result
+    true = run(logs, settings=Settings(effects_files=[str(path)], add=[name], candidates=[])).json
     key = next(k for k, v in true["horizons_s"].items() if v == true["reference_horizon_s"])
     return true["added"]["reduction"][key], {k: v["value"] for k, v in true["added"]["params"].items()}
 
@@ -220,7 +220,7 @@ def _lookalike_round(case: blind_sim.Case, folder: Path, logs: list, fields: dic
            "declared": any(hidden in g for g in fields["lookalikes"]), "experiment": None, "after": None}
     if out["named_at_once"] or not out["declared"]:
         return out
-    summary = d.result.get("experiment")
+    summary = d.json.get("experiment")
     if d.experiment is None:
         out["experiment"] = {"status": "none designed"}
         return out
@@ -253,7 +253,7 @@ def _multi_experiment(case: blind_sim.Case, folder: Path, logs: list, record: di
     where.mkdir(parents=True, exist_ok=True)
     csv = next(p for p in (Path(x) for x in d.experiment.write(where)) if p.suffix == ".csv")
     again, _ = _diagnose(list(logs) + [blind_sim.simulate_experiment(case, csv, where)])
-    return {"experiment": "simulated", "members": (d.result.get("experiment") or {}).get("members"),
+    return {"experiment": "simulated", "members": (d.json.get("experiment") or {}).get("members"),
             "named_effects": again["named_effects"], "lookalikes": again["lookalikes"],
             "all_named": hidden <= set(again["named_effects"])}
 

@@ -60,7 +60,7 @@ def main(argv=None) -> int:
         diag = run(files, settings=Settings(jobs=args.jobs))
         write_outputs(diag, Path(tmp) / "diag", args.jobs)
         wall = time.perf_counter() - t0
-    r = diag.result
+    r = diag.json
     best = r["ranking"][0]
     print(json.dumps({
         "logs": len(files), "rows": rows, "record_s": round(record_s, 1),

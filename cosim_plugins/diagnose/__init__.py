@@ -4,8 +4,9 @@ The pipeline (:mod:`.pipeline`) fits a baseline model to raw logs, measures its
 open-loop error against the noise floor (:mod:`.noise`), localises it
 (:mod:`.localise`), ranks candidate effects by a joint refit, discovers a
 form outside the library (:mod:`.discover`), and states a verdict
-(:mod:`.verdict`); :mod:`.report`
-writes report.md, diagnosis.json and diagnosis.rrd (:mod:`.recording`).
+(:mod:`.verdict`). What it finds is a typed result (:mod:`.result`), rendered in
+one place (:mod:`.render`: diagnosis.json, the printed summary, report.md);
+:mod:`.report` writes the files with the plots, and diagnosis.rrd (:mod:`.recording`).
 """
 
 from cosim import hookimpl

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from cosim.contract.errors import UserError
 from cosim_plugins.commands import output_folder, progress
-from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, STOPS
+from cosim_plugins.diagnose.stepwise import MAX_EFFECTS
 
 
 def add_commands(subparsers) -> None:
@@ -60,6 +60,7 @@ def add_commands(subparsers) -> None:
 def cmd_diagnose(args) -> int:
     """``cosim diagnose``: which physical effects the model misses; writes the report folder."""
     from cosim_plugins.diagnose.pipeline import Settings, run
+    from cosim_plugins.diagnose.render import terminal
     from cosim_plugins.diagnose.report import write_outputs
 
     out = output_folder(args.out)
@@ -81,7 +82,7 @@ def cmd_diagnose(args) -> int:
     diag = run(args.logs, args.validate, settings, progress=progress)
     saved = save_model(diag.added_model.savable(), args.save_model) if args.save_model else None
     files = write_outputs(diag, out, settings.jobs)
-    print(format_diagnosis(diag.result))
+    print(terminal(diag.result))
     print(f"wrote {len(files)} files to {out} (report.md, diagnosis.json, diagnosis.rrd"
           + (", experiment.yaml, experiment_excitation.csv" if diag.experiment is not None else "") + ")")
     if saved:
@@ -113,88 +114,3 @@ def save_model(model, path) -> Path:
         raise UserError(f"model file {path} is a directory")
     path.parent.mkdir(parents=True, exist_ok=True)
     return model.save(path)
-
-
-def format_diagnosis(r: dict) -> str:
-    """Printable summary of a diagnosis: errors by horizon, ranking, what the figures mean, verdict."""
-    from cosim_plugins.diagnose.wording import legend
-
-    hs = list(r["horizons_s"])
-    key = next(k for k, v in r["horizons_s"].items() if v == r["reference_horizon_s"])
-    lines = [f"{'held-out error [mm]':<28}" + "".join(f"{h + ' s':>9}" for h in hs),
-             f"{r['baseline']['model'] + ' (baseline)':<28}" + "".join(f"{_num(r['baseline']['rollout_mm'][h]):>9}"
-                                                                      for h in hs)]
-    if r["added"]:
-        a = r["added"]
-        lines.append(f"{'+ ' + ' + '.join(a['effects']):<28}" + "".join(f"{_num(a['rollout_mm'][h]):>9}" for h in hs))
-    elif r["reference"]:
-        ref = r["reference"]
-        lines.append(f"{ref['model'] + ' (effects ref.)':<28}"
-                     + "".join(f"{_num(ref['rollout_mm'][h]):>9}" for h in hs))
-    lines.append(f"{'noise floor':<28}" + "".join(f"{_num(r['noise']['floor_mm'][h]):>9}" for h in hs))
-    lines += ["", f"{'rank':<5}{'effect':<20}{'error ' + key + ' s':>12}{'reduction':>11}{'t':>7}"]
-    for i, e in enumerate(r["ranking"], 1):
-        if not e.get("identifiable", True):
-            lines.append(f"{'-':<5}{e['effect']:<20}{'not identifiable from these logs':>30}")
-            continue
-        lines.append(f"{i:<5}{e['effect']:<20}{_num(e['rollout_mm'][key]):>12}{e['reduction']:>+11.1%}"
-                     f"{e['t_stat']:>7.1f}")
-    found = r.get("discovered")
-    if found and found["status"] == "found":
-        lines.append(f"{'+':<5}{'discovered':<20}{_num(found['rollout_mm'][key]):>12}{found['reduction']:>+11.1%}"
-                     f"{found['t_stat']:>7.1f}   ({len(found['terms'])} terms, {found['file']})")
-    lines += _stepwise_lines(r, key)
-    lines += _drift_lines(r.get("drift") or {}, key)
-    for note in r.get("fit_notes", ()):
-        lines.append(f"note: {note}")
-    lines += [""] + [f"  {line}" for line in legend()]
-    lines += ["", "verdict: " + r["verdict"]["explanation"]]
-    return "\n".join(lines)
-
-
-def _stepwise_lines(r: dict, key: str) -> list[str]:
-    """The rounds after the first (each candidate given the effects chosen before) and the chosen set."""
-    sw = r["stepwise"]
-    lines = []
-    for n, entries in enumerate(sw["rounds"][1:], 2):
-        given = " + ".join(st["effects"][0] for st in sw["steps"][: n - 1])
-        lines += ["", f"round {n}, given {given}:"]
-        for e in entries[:4]:
-            lines.append(f"{'':<5}{e['effect']:<20}{_num(e['rollout_mm']):>12}{e['reduction']:>+11.1%}"
-                         f"{e['t_stat']:>7.1f}" if e["identifiable"] else f"{'':<5}{e['effect']:<20}  not identifiable")
-    if sw["steps"]:
-        chosen = " -> ".join(" ~ ".join(st["effects"]) for st in sw["steps"])
-        lines += ["", f"chosen, in order: {chosen}  (joint: {_num(sw['joint']['rollout_mm'][key])} mm at {key} s, "
-                      f"{sw['joint']['reduction'][key]:+.1%}; stopped: {STOPS[sw['stop']]})"]
-    exp = r.get("experiment")
-    if exp:
-        lines.append(f"experiment: {exp['kind']} for {exp['duration_s']:g} s separates "
-                     f"{' / '.join(exp['members'])} by {_num(exp['separation_mm'])} mm"
-                     + (f" ({exp['separation_over_floor']:.1f}x the noise floor)"
-                        if exp["separation_over_floor"] else ""))
-    return lines
-
-
-def _drift_lines(d: dict, key: str) -> list[str]:
-    """The drift test: the held-out drop of the per-log and per-block fits, each quantity's test, the flags."""
-    if d.get("skipped"):
-        return ["", f"drift: not tested ({d['skipped']})"]
-    lines = []
-    b, w = d.get("between"), d.get("within")
-    fits = [(f"{', '.join(d['params'])} free per log", b), ("a trend from log to log", (b or {}).get("trend")),
-            ("a trend within the logs", w)]
-    for what, fit in fits:
-        if not fit:
-            continue
-        line = (f"drift, {what}: {_num(fit['rollout_mm'][key])} mm at {key} s ({fit['reduction']:+.1%}, "
-                f"t = {fit['t_stat']:.1f})")
-        if "quantities" in fit:
-            line += "; " + ", ".join(f"{q} p={v['p']:.0e}" for q, v in fit["quantities"].items())
-        lines.append(line)
-    if lines:
-        lines.append("drift flagged: " + (", ".join(d["flagged"]) if d["flagged"] else "none (the logs agree)"))
-    return [""] + lines if lines else []
-
-
-def _num(v) -> str:
-    return "-" if v is None else f"{v:.3f}"

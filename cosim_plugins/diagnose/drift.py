@@ -62,6 +62,7 @@ from cosim_plugins.diagnose.per_unit import (
     trend_fit,
     within_logs,
 )
+from cosim_plugins.diagnose.result import DriftExplains, DriftResult, GivenDrift
 
 MIN_REDUCTION = 0.05
 MIN_T = 3.0
@@ -92,7 +93,7 @@ def check_params(names, model) -> tuple:
 
 
 def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, chosen=(), floor=None,
-            say=None) -> dict:
+            say=None) -> DriftResult:
     """The drift section of diagnosis.json (see the module doc) for the chosen model ``final`` (a Fit).
 
     ``train_starts``: the training open-loop window starts (all of them; sampled per unit here);
@@ -115,7 +116,7 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
     if len(order) != n_logs:
         raise ValueError(f"--t-start gives {len(order)} start times for {n_logs} logs")
     cluster = max(1, int(round(CLUSTER_S / ttr.dt_s)))
-    out = {"params": list(names), "order": how, "flagged": [], "per_log": {}, "t": {}, "words": []}
+    out = DriftResult(params=list(names), order=how, flagged=[], per_log={}, t={}, words=[])
 
     def held_out(fit):
         ev = fit.model.evaluate(tte, fitter.test_starts, lead, fitter.steps)
@@ -156,7 +157,7 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
     flagged: dict[str, _Shown] = {}
     if between is not None:
         ev_log, summ, red, t = held_out(between)
-        out["between"] = b = {"rollout_mm": summ, "reduction": red, "t_stat": t}
+        out.between = b = {"rollout_mm": summ, "reduction": red, "t_stat": t}
         say(f"drift: per log, held-out error at {key} s {summ[key]:.3f} mm ({red:+.1%}, t = {t:.1f})")
         trend_log = trend_fit(between, np.zeros(n_logs), order, shared) if n_logs >= 3 else None
         if trend_log is not None:
@@ -171,7 +172,7 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
         trend_block = trend_fit(within, blocks.log, blocks.t_s, shared)
         ev_block, summ, red, t = held_out(trend_block)
         vs_log = fitter.paired_t(ev_log[key], ev_block[key]) if between is not None else t
-        out["within"] = w = {"blocks": blocks.n, "rollout_mm": summ, "reduction": red, "t_stat": t,
+        out.within = w = {"blocks": blocks.n, "rollout_mm": summ, "reduction": red, "t_stat": t,
                              "t_vs_per_log": vs_log, "quantities": trends,
                              "free": {"rollout_mm": summ_free, "reduction": red_free, "t_stat": t_free}}
         say(f"drift: a trend within the logs ({blocks.n} blocks), held-out error at {key} s {summ[key]:.3f} mm "
@@ -189,8 +190,8 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
         b["quantities"] = {n: {**between_logs(x, sd, order, trends.get(n, {}).get("scatter", 1.0)),
                                "values": _list(x), "std": _list(sd)}
                            for n, (x, sd) in quantities(between, shared, mass).items()}
-        out["per_log"] = {n: _list(between.values[:, j]) for j, n in enumerate(names)}
-        out["t"] = {n: v["slope_t"] for n, v in b["quantities"].items()}
+        out.per_log = {n: _list(between.values[:, j]) for j, n in enumerate(names)}
+        out.t = {n: v["slope_t"] for n, v in b["quantities"].items()}
         free_ok, trend_ok = gate(b), "trend" in b and gate(b["trend"])
         for n, v in b["quantities"].items():
             if free_ok:  # the logs differ, in any order
@@ -207,13 +208,14 @@ def analyse(final, fitter, train_starts: np.ndarray, params=None, order=None, ch
                                   lambda m: trend_fit(fit_per_unit(m, ttr, starts_log, logs, names, lead, k_ref,
                                                                    cluster), np.zeros(n_logs), order, m.params()))
     order_flags = [f for f in flagged if not f.startswith("within:")] + [f for f in flagged if f.startswith("within:")]
-    out["flagged"] = order_flags
-    out["words"] = [flagged[f].words for f in order_flags]
+    out.flagged = order_flags
+    out.words = [flagged[f].words for f in order_flags]
     if order_flags:
         shown = flagged[order_flags[0]]  # between before within: a drift between logs explains more
-        out["explains"] = {"fit": shown.label, **{k: shown.figures[k] for k in ("rollout_mm", "reduction", "t_stat")}}
+        out.explains = DriftExplains(fit=shown.label, **{k: shown.figures[k] for k in ("rollout_mm", "reduction",
+                                                                                       "t_stat")})
         if chosen:
-            out["given_drift"] = _effects_given_drift(final, shown.fit, shown.remake, fitter, chosen, floor, say)
+            out.given_drift = _effects_given_drift(final, shown.fit, shown.remake, fitter, chosen, floor, say)
     return out
 
 
@@ -245,7 +247,7 @@ def _effects_given_drift(final, fit, remake, fitter, chosen, floor, say) -> list
     effect and its drift is compared with the model refitted without the effect and its drift fitted again, by
     the verdict's tests of the drop (:func:`~.verdict.passes`). Refitting the drift too matters: offsets fitted
     beside an effect have already given it part of their work.
-    [{"effect", "reduction", "t_stat", "kept"}]."""
+    [GivenDrift per chosen effect]."""
     from cosim_plugins.diagnose.fitting import reduction_of
     from cosim_plugins.diagnose.verdict import passes
 
@@ -261,37 +263,37 @@ def _effects_given_drift(final, fit, remake, fitter, chosen, floor, say) -> list
                  "reduction": reduction_of(before, drifted.summary["rollout_mm"][key]),
                  "t_stat": fitter.paired_t(without.ev[key], drifted.ev[key])}
         entry["kept"] = passes(entry, before, floor, key)
-        out.append({k: entry[k] for k in ("effect", "reduction", "t_stat", "kept")})
+        out.append(GivenDrift(**{k: entry[k] for k in ("effect", "reduction", "t_stat", "kept")}))
     return out
 
 
-def candidate_entry(drift: dict, key: str) -> dict | None:
+def candidate_entry(drift: DriftResult, key: str) -> dict | None:
     """The ``--per-log`` fit as a ranking entry (effect ``per-log PARAMS``, kind "drift"), None without one."""
-    b = drift.get("between")
+    b = drift.between
     if not b:
         return None
-    return {"effect": per_log_name(drift["params"]), "kind": "drift", "rollout_mm": b["rollout_mm"],
+    return {"effect": per_log_name(drift.params), "kind": "drift", "rollout_mm": b["rollout_mm"],
             "reduction": b["reduction"], "reduction_by_horizon": {}, "t_stat": b["t_stat"], "identifiable": True,
             "params": {}, "fit": {}, "conditioning": {},
-            "doc": f"{', '.join(drift['params'])} fitted free per log, the rest shared"}
+            "doc": f"{', '.join(drift.params)} fitted free per log, the rest shared"}
 
 
-def sentence(drift: dict, key: str) -> str:
+def sentence(drift: DriftResult | None, key: str) -> str:
     """The verdict's words on drift ('' when nothing is flagged)."""
-    if not drift or not drift.get("flagged"):
+    if not drift or not drift.flagged:
         return ""
-    between_flagged = any(not f.startswith("within:") for f in drift["flagged"])
+    between_flagged = any(not f.startswith("within:") for f in drift.flagged)
     parts = [("The logs disagree with each other: " if between_flagged else "The plant drifts within the logs: ")
-             + "; ".join(drift["words"]) + "."]
-    fit = drift["explains"]
-    parts.append(f"With {', '.join(drift['params'])} fitted as {fit['fit']}, the held-out error at {key} s falls by "
-                 f"{fit['reduction']:.0%} (to {fit['rollout_mm'][key]:.2f} mm; t = {fit['t_stat']:.1f}).")
-    gone = [g["effect"] for g in drift.get("given_drift", ()) if not g["kept"]]
+             + "; ".join(drift.words) + "."]
+    fit = drift.explains
+    parts.append(f"With {', '.join(drift.params)} fitted as {fit.fit}, the held-out error at {key} s falls by "
+                 f"{fit.reduction:.0%} (to {fit.rollout_mm[key]:.2f} mm; t = {fit.t_stat:.1f}).")
+    gone = [g.effect for g in drift.given_drift or () if not g.kept]
     if gone:
         parts.append(f"{' and '.join(gone)}, which the search chose before, {'is' if len(gone) == 1 else 'are'} "
                      "not needed once the drift is allowed for.")
     parts.append("Next: look for what changed " + ("between the experiments (water temperature, the swimmer's "
-                 f"insertion, coil heating); --per-log {','.join(drift['params'])} fits them per log."
+                 f"insertion, coil heating); --per-log {','.join(drift.params)} fits them per log."
                  if between_flagged else "during each experiment (coil heating, water warming, a swimmer "
                  "wearing); shorter logs, or logs recorded once the rig has settled, avoid it."))
     return " ".join(parts)

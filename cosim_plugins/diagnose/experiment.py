@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim_plugins.diagnose.excitation import Excitation, candidates
+from cosim_plugins.diagnose.result import ExperimentFiles, ExperimentPath, ExperimentResult, Tried
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.timeline import Timeline
 from cosim_plugins.raw_log import Log
@@ -60,21 +61,21 @@ class Experiment:
     radius_mm: float
     separation_mm: float  # smallest mean separation (over windows and horizons) over the ordered pairs of members
     floor_mm: float | None
-    tried: list = field(default_factory=list)  # [{"excitation", "separation_mm"}] every candidate
+    tried: list = field(default_factory=list)  # [Tried] every candidate
 
     def schedule(self) -> tuple[np.ndarray, np.ndarray]:
         """(t_s (n,), freq_hz (n,)): the spin rate at every control period of the experiment."""
         t = np.arange(int(round(self.excitation.duration_s / self.dt_s))) * self.dt_s
         return t, self.excitation.freq_hz(t)
 
-    def summary(self) -> dict:
+    def summary(self) -> ExperimentResult:
         """diagnosis.json's ``experiment``."""
-        return {"members": self.members, "kind": self.excitation.describe(), "params": self.excitation.params(),
-                "duration_s": self.excitation.duration_s, "separation_mm": self.separation_mm,
-                "floor_mm": self.floor_mm,
-                "separation_over_floor": self.separation_mm / self.floor_mm if self.floor_mm else None,
-                "path": {"plugin": "circle", "radius_mm": self.radius_mm, "center_mm": self.center_mm},
-                "files": {"scenario": SCENARIO_FILE, "excitation": EXCITATION_FILE}, "tried": self.tried}
+        return ExperimentResult(
+            members=self.members, kind=self.excitation.describe(), params=self.excitation.params(),
+            duration_s=self.excitation.duration_s, separation_mm=self.separation_mm, floor_mm=self.floor_mm,
+            separation_over_floor=self.separation_mm / self.floor_mm if self.floor_mm else None,
+            path=ExperimentPath(plugin="circle", radius_mm=self.radius_mm, center_mm=self.center_mm),
+            files=ExperimentFiles(scenario=SCENARIO_FILE, excitation=EXCITATION_FILE), tried=self.tried)
 
     def write(self, out_dir) -> list[Path]:
         """Write ``experiment.yaml`` and ``experiment_excitation.csv`` into ``out_dir``; returns their paths."""
@@ -170,7 +171,7 @@ def design_experiment(step, tl: Timeline, fitter, floor_mm: float | None, say=No
             per = np.array([np.nanmean(norm[truth.log[starts] == k]) for k in range(len(tried))])
             sep = np.minimum(sep, np.nan_to_num(per, nan=0.0))
     best = int(np.argmax(sep))
-    record = [{"excitation": e.describe(), "separation_mm": float(s)} for e, s in zip(tried, sep)]
+    record = [Tried(excitation=e.describe(), separation_mm=float(s)) for e, s in zip(tried, sep)]
     chosen = replace(tried[best], duration_s=sized_duration(float(sep[best]), floor_mm, duration_s))
     say(f"experiment: {chosen.describe()}: the members' predictions differ by {sep[best]:.2f} mm"
         + (f" ({sep[best] / floor_mm:.1f}x the noise floor)" if floor_mm else "")

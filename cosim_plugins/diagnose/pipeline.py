@@ -21,6 +21,9 @@ Pipeline of ``cosim diagnose`` (units mm, mm/s, Hz, s):
    (:mod:`.discover`); design the experiment that tells a look-alike group
    apart (:mod:`.experiment`); :mod:`.verdict` names the effects (or not).
 
+What it finds is a :class:`~.result.DiagnosisResult`, built here step by step;
+:mod:`.render` turns it into diagnosis.json, the printed summary and report.md.
+
 ``--add`` effects are fitted into the reference model first: the report
 shows the error before and after at every horizon, and the ranking then
 looks for what remains.
@@ -40,6 +43,25 @@ from cosim_plugins.diagnose.experiment import Experiment, design_experiment
 from cosim_plugins.diagnose.fitting import Fitter, bar, fit_model, reduction_of, velocity_time_constant
 from cosim_plugins.diagnose.localise import localise, window_features
 from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
+from cosim_plugins.diagnose.result import (
+    Added,
+    Baseline,
+    DiagnosisResult,
+    Discovered,
+    DriftResult,
+    Dropped,
+    GroupEvidence,
+    Joint,
+    Localisation,
+    Noise,
+    RankEntry,
+    Reference,
+    RoundEntry,
+    RunnerUp,
+    Split,
+    StepResult,
+    Stepwise,
+)
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.diagnose.verdict import discovered_explains, fit_notes, paired_t, verdict
@@ -101,9 +123,10 @@ class Settings:
 
 @dataclass
 class Diagnosis:
-    """``result`` is diagnosis.json; the arrays feed the report and the recording."""
+    """``result`` is what the diagnosis found (:func:`.render.to_json` of it is diagnosis.json); the arrays feed
+    the report and the recording."""
 
-    result: dict
+    result: DiagnosisResult
     timeline: Timeline  # all logs
     starts: np.ndarray  # evaluation windows on all logs
     lead: int
@@ -115,6 +138,13 @@ class Diagnosis:
     discovered_source: str | None = None  # discovered_effect.py, when a form was discovered
     added_model: JointModel | None = None  # with --add: the reference model with the added effects, refitted
     experiment: Experiment | None = None  # the designed log that tells a look-alike group apart
+
+    @property
+    def json(self) -> dict:
+        """diagnosis.json's content (:func:`.render.to_json` of ``result``)."""
+        from cosim_plugins.diagnose.render import to_json
+
+        return to_json(self.result)
 
 
 @threadpool_limits.wrap(limits=1, user_api="blas")
@@ -183,11 +213,11 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     if added:
         say(f"adding {', '.join(e.name for e in added)} ...")
         after, _ = fitter.with_effects(reference, added, say)
-        added_out = {"effects": [e.name for e in added], "params": after.fitted.params, "std": after.fitted.std,
-                     "before_mm": reference.summary["rollout_mm"], "rollout_mm": after.summary["rollout_mm"],
-                     "conditioning": after.model.conditioning,
-                     "reduction": {h: reduction_of(reference.summary["rollout_mm"][h], after.summary["rollout_mm"][h])
-                                   for h in steps}}
+        added_out = Added(effects=[e.name for e in added], params=after.fitted.params, std=after.fitted.std,
+                          before_mm=reference.summary["rollout_mm"], rollout_mm=after.summary["rollout_mm"],
+                          conditioning=after.model.conditioning,
+                          reduction={h: reduction_of(reference.summary["rollout_mm"][h],
+                                                     after.summary["rollout_mm"][h]) for h in steps})
         reference = after
         fitted.append(reference.model)
     say(f"round 1: {len(candidates)} candidates given "
@@ -210,53 +240,54 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
               if loc_sum["rollout_mm"][h] is not None}
     loc = localise(features, after_all if after else err_all, horizon_means=excess)
     loc["model"] = f"+ {' + '.join(s.add)}" if after else s.model
-    result = {
-        "logs": [str(p) for p in log_paths], "validate": [str(p) for p in validate_paths], "split": split,
-        "dt_s": dt, "horizons_s": s.horizons, "reference_horizon_s": s.horizons[s.reference],
-        "lead_in_s": lead * dt, "effects_files": [str(f) for f in s.effects_files], "file_effects": added_files,
-        "baseline": {"model": s.model, **base_sum, "params": baseline.model.params(),
-                     "std": {k: (v if np.isfinite(v) else None) for k, v in baseline.model.std.items()},
-                     "conditioning": baseline.model.conditioning},
-        "reference": None if reference is baseline else {"model": EFFECT_MODEL, "effects": s.add,
-                                                          **reference.summary},
-        "noise": {"sigma_mm": dict(zip("xyz", map(float, sigma))) if sigma is not None else None,
-                  "floor_mm": floor, "tau_s": tau_floor, "tau_from": tau_from},
-        "noise_floor_mm": floor[s.reference],
-        "localisation": loc, "added": added_out, "ranking": ranking,
-        "stepwise": stepwise_json(selection, s.reference, s.max_effects),
-    }
-    result["drift"] = _drift(s, split, selection, fitter, train_open, result, say)
-    result["fit_notes"] = fit_notes(result)
-    result["verdict"] = verdict(result, s.reference)
+    stepwise = stepwise_result(selection, s.reference, s.max_effects)
+    drift_out = _drift(s, split, selection, fitter, train_open, ranking, stepwise, floor[s.reference], say)
+    result = DiagnosisResult(
+        logs=[str(p) for p in log_paths], validate=[str(p) for p in validate_paths], split=split,
+        dt_s=dt, horizons_s=s.horizons, reference_horizon_s=s.horizons[s.reference],
+        lead_in_s=lead * dt, effects_files=[str(f) for f in s.effects_files], file_effects=added_files,
+        baseline=Baseline(model=s.model, **base_sum, params=baseline.model.params(),
+                          std={k: (v if np.isfinite(v) else None) for k, v in baseline.model.std.items()},
+                          conditioning=baseline.model.conditioning),
+        reference=None if reference is baseline else Reference(model=EFFECT_MODEL, effects=s.add,
+                                                               **reference.summary),
+        noise=Noise(sigma_mm=dict(zip("xyz", map(float, sigma))) if sigma is not None else None,
+                    floor_mm=floor, tau_s=tau_floor, tau_from=tau_from),
+        noise_floor_mm=floor[s.reference],
+        localisation=Localisation(**loc), added=added_out, ranking=[rank_entry(e) for e in ranking],
+        stepwise=stepwise, drift=drift_out,
+    )
+    result.fit_notes = fit_notes(result)
+    result.verdict = verdict(result, s.reference)
     source = None
-    if s.discover or result["verdict"]["status"] == "unexplained" or _left_above_floor(result, s.reference):
-        result["discovered"], source, found_fit = _discover(final, ttr, fit_starts, fit_len, tte, test_starts, s, dt,
-                                                            fitter, say, open_train)
+    if s.discover or result.verdict.status == "unexplained" or _left_above_floor(result, s.reference):
+        result.discovered, source, found_fit = _discover(final, ttr, fit_starts, fit_len, tte, test_starts, s, dt,
+                                                         fitter, say, open_train)
         if found_fit is not None and discovered_explains(result, s.reference):
             given = _given_discovered(fitter, found_fit, candidates, selection, s, floor, say)
             if given is not None:
-                result["stepwise"]["given_discovered"] = stepwise_json(given, s.reference, s.max_effects)
-        result["verdict"] = verdict(result, s.reference)
+                result.stepwise.given_discovered = stepwise_result(given, s.reference, s.max_effects)
+        result.verdict = verdict(result, s.reference)
     experiment = None
     groups = [st for st in selection.steps if st.is_group]
     if groups:
         say(f"experiment: designing the log that tells {' from '.join(groups[0].effects)} apart ...")
         floors = [f for f in floor.values() if f is not None]  # the separation is averaged over the horizons too
         experiment = design_experiment(groups[0], tall, fitter, float(np.mean(floors)) if floors else None, say)
-        result["experiment"] = experiment.summary()
-        result["verdict"] = verdict(result, s.reference)
-    result["timing_s"] = round(time.perf_counter() - t_start, 2)
+        result.experiment = experiment.summary()
+        result.verdict = verdict(result, s.reference)
+    result.timing_s = round(time.perf_counter() - t_start, 2)
     curves = {f"{s.model} (baseline)": base_sum["rollout_mm"], "noise floor": floor}
     if added_out:
-        curves[f"+ {' + '.join(added_out['effects'])}"] = added_out["rollout_mm"]
+        curves[f"+ {' + '.join(added_out.effects)}"] = added_out.rollout_mm
     if selection.steps:
         curves["+ " + " + ".join(selection.chosen) + (" (chosen)" if len(selection.steps) > 1 else " (best)")] = \
             final.summary["rollout_mm"]
-    elif ranking and ranking[0]["identifiable"]:
-        curves[f"+ {ranking[0]['effect']} (best)"] = ranking[0]["rollout_mm"]
-    if (result.get("discovered") or {}).get("status") == "found" and not added_out:
-        curves["+ discovered"] = result["discovered"]["rollout_mm"]
-    named = result["verdict"]["effects"]
+    elif result.ranking and result.ranking[0].identifiable:
+        curves[f"+ {result.ranking[0].effect} (best)"] = result.ranking[0].rollout_mm
+    if result.discovered is not None and result.discovered.status == "found" and not added_out:
+        curves["+ discovered"] = result.discovered.rollout_mm
+    named = result.verdict.effects
     if after is None and selection.steps:  # the plots show the error with the chosen effects too
         after_all = final.model.evaluate(tall, all_starts, lead, ref_steps)[s.reference]["err"]
     after_label = ((f"+ {' + '.join(s.add)}" if after else f"+ {' + '.join(selection.chosen)}"
@@ -267,30 +298,29 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                      added_model=after.model if after else None, experiment=experiment)
 
 
-def _drift(s: Settings, split: dict, selection: Selection, fitter: Fitter, train_starts, result: dict,
-           say) -> dict:
-    """diagnosis.json's ``drift`` (see :mod:`.drift`); with ``--per-log`` its fit joins the ranking. A chosen
-    effect that the drift makes unnecessary leaves ``result["stepwise"]["steps"]`` for its ``dropped``."""
-    final, ranking = selection.final, result["ranking"]
+def _drift(s: Settings, split: Split, selection: Selection, fitter: Fitter, train_starts, ranking: list,
+           sw: Stepwise, floor_mm: float | None, say) -> DriftResult:
+    """The result's ``drift`` (see :mod:`.drift`); with ``--per-log`` its fit joins ``ranking`` (the first round's
+    rank entries, :mod:`.stepwise`'s dicts). A chosen effect that the drift makes unnecessary leaves ``sw.steps``
+    and ``selection.steps`` for ``sw.dropped``; ``floor_mm``: the noise floor at the reference horizon."""
+    final = selection.final
     if not (s.drift or s.per_log is not None or s.t_start is not None):  # --per-log, --t-start ask for it
-        return {"flagged": [], "skipped": "--no-drift"}
-    if split["kind"] != "time_blocks":
-        return {"flagged": [], "skipped": "the held-out data are --validate logs: drift is tested on held-out "
-                "blocks of the same logs"}
+        return DriftResult(skipped="--no-drift")
+    if split.kind != "time_blocks":
+        return DriftResult(skipped="the held-out data are --validate logs: drift is tested on held-out blocks of "
+                           "the same logs")
     if not hasattr(final.model.host, "set_columns"):
-        return {"flagged": [], "skipped": f"the {final.model.host.name} model has no base parameters to fit per log"}
+        return DriftResult(skipped=f"the {final.model.host.name} model has no base parameters to fit per log")
     chosen = [st.effects[0] for st in selection.steps]
     try:
-        out = drift.analyse(final, fitter, train_starts, s.per_log, s.t_start, chosen,
-                            result["noise"]["floor_mm"][s.reference], say)
+        out = drift.analyse(final, fitter, train_starts, s.per_log, s.t_start, chosen, floor_mm, say)
     except ValueError as exc:
         raise UserError(str(exc)) from None
-    gone = {g["effect"]: g for g in out.get("given_drift", ()) if not g["kept"]}
+    gone = {g.effect: g for g in out.given_drift or () if not g.kept}
     if gone:
-        sw = result["stepwise"]
-        sw["dropped"] += [{"effect": n, "reduction": g["reduction"], "t_stat": g["t_stat"], "given": "drift"}
-                          for n, g in gone.items()]
-        sw["steps"] = [st for st in sw["steps"] if st["effects"][0] not in gone]
+        sw.dropped += [Dropped(effect=n, reduction=g.reduction, t_stat=g.t_stat, given="drift")
+                       for n, g in gone.items()]
+        sw.steps = [st for st in sw.steps if st.effects[0] not in gone]
         selection.steps = [st for st in selection.steps if st.effects[0] not in gone]
     entry = drift.candidate_entry(out, s.reference) if s.per_log else None
     if entry is not None:
@@ -299,35 +329,41 @@ def _drift(s: Settings, split: dict, selection: Selection, fitter: Fitter, train
     return out
 
 
-def stepwise_json(sel: Selection, key: str, max_effects: int) -> dict:
-    """The stepwise search in diagnosis.json: every round's ranking (compact), the steps, the joint drop."""
+def rank_entry(e: dict) -> RankEntry:
+    """A rank entry of :mod:`.stepwise` (a dict; with its ``runner_up`` one) as the result holds it."""
+    runner = e.get("runner_up")
+    return RankEntry(**{**e, "runner_up": RunnerUp(**runner) if runner else None})
+
+
+def stepwise_result(sel: Selection, key: str, max_effects: int) -> Stepwise:
+    """The stepwise search as the result holds it: every round's ranking (compact), the steps, the joint drop."""
     def compact(e):
-        return {"effect": e["effect"], "rollout_mm": e["rollout_mm"][key], "reduction": e["reduction"],
-                "t_stat": e["t_stat"], "identifiable": e["identifiable"]}
+        return RoundEntry(effect=e["effect"], rollout_mm=e["rollout_mm"][key], reduction=e["reduction"],
+                          t_stat=e["t_stat"], identifiable=e["identifiable"])
 
     start, final = sel.start.summary["rollout_mm"], sel.final.summary["rollout_mm"]
-    return {
-        "max_effects": max_effects, "stop": sel.stop,
-        "rounds": [[compact(e) for e in entries] for entries in sel.rounds],
-        "steps": [{"effects": st.effects, "group": st.is_group, "rollout_before_mm": st.before.error(key),
-                   "rollout_mm": st.entry["rollout_mm"][key], "reduction": st.entry["reduction"],
-                   "t_stat": st.entry["t_stat"], "params": st.entry["params"],
-                   "group_evidence": st.group_evidence,
-                   "given": st.given if st.given is not None else [s.effects[0] for s in sel.steps[:i]],
-                   "alone": compact(st.alone) if st.alone is not None else None}
-                  for i, st in enumerate(sel.steps)],
-        "dropped": sel.dropped,
-        "joint": {"effects": sel.chosen, "rollout_mm": final,
-                  "reduction": {h: reduction_of(start[h], final[h]) for h in final}},
-    }
+    return Stepwise(
+        max_effects=max_effects, stop=sel.stop,
+        rounds=[[compact(e) for e in entries] for entries in sel.rounds],
+        steps=[StepResult(effects=st.effects, group=st.is_group, rollout_before_mm=st.before.error(key),
+                          rollout_mm=st.entry["rollout_mm"][key], reduction=st.entry["reduction"],
+                          t_stat=st.entry["t_stat"], params=st.entry["params"],
+                          group_evidence={m: GroupEvidence(**ev) for m, ev in st.group_evidence.items()},
+                          given=st.given if st.given is not None else [s.effects[0] for s in sel.steps[:i]],
+                          alone=compact(st.alone) if st.alone is not None else None)
+               for i, st in enumerate(sel.steps)],
+        dropped=[Dropped(**d) for d in sel.dropped],
+        joint=Joint(effects=sel.chosen, rollout_mm=final,
+                    reduction={h: reduction_of(start[h], final[h]) for h in final}),
+    )
 
 
-def _left_above_floor(result: dict, key: str) -> bool:
+def _left_above_floor(result: DiagnosisResult, key: str) -> bool:
     """True when even the chosen effects leave the error well above the noise floor (something else is missing)."""
-    sw, floor = result["stepwise"], result["noise"]["floor_mm"][key]
-    if not sw["steps"] or not floor:
+    sw, floor = result.stepwise, result.noise.floor_mm[key]
+    if not sw.steps or not floor:
         return False
-    return sw["joint"]["rollout_mm"][key] > DISCOVER_ABOVE_FLOOR * floor
+    return sw.joint.rollout_mm[key] > DISCOVER_ABOVE_FLOOR * floor
 
 
 def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selection, s: Settings, floor: dict,
@@ -347,14 +383,14 @@ def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selecti
 
 
 def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, say, train):
-    """(result["discovered"], effect file source or None, the final model refitted with the discovered form (a
-    Fit) or None): the sparse regression of :mod:`.discover` on what the final model (the chosen effects in)
+    """(the result's ``discovered``, effect file source or None, the final model refitted with the discovered form
+    (a Fit) or None): the sparse regression of :mod:`.discover` on what the final model (the chosen effects in)
     leaves."""
     from cosim_plugins.diagnose.discover import discover
 
     reference = final.model
     if not supports_effects(reference.host):
-        return {"status": "unsupported", "explanation": "discovery needs a parametric reference model"}, None, None
+        return Discovered(status="unsupported", explanation="discovery needs a parametric reference model"), None, None
     held = {}
 
     def refit(effect):  # its coefficients start at the linearised regression's: no other start is needed
@@ -365,7 +401,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
     test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
     found = discover(reference, ttr, tte, train, test, refit, say, jobs=s.jobs)
     if found["status"] != "found":
-        return found, None, None
+        return Discovered(**found), None, None
     summ, ev = found.pop("summary"), found.pop("ev")
     found.pop("fitted")
     source = found.pop("source")
@@ -378,26 +414,26 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
                   "t_stat": fitter.paired_t(final.ev[key], ev[key])})
     say(f"discover: refitted with the discovered terms: {found['reduction']:+.1%} at {key} s")
     if not found["reduction"] > 0.0:  # the linearised choice did not survive the full refit (or it diverged)
-        return {"status": "none", "explanation": "the sparse form chosen on the linearised problem does not lower "
-                "the held-out error once refitted: what is left looks like noise, or a form the candidates cannot "
-                "express", "terms": found["terms"]}, None, None
-    return found, source, held.get("fit")
+        return Discovered(status="none", explanation="the sparse form chosen on the linearised problem does not "
+                          "lower the held-out error once refitted: what is left looks like noise, or a form the "
+                          "candidates cannot express", terms=found["terms"]), None, None
+    return Discovered(**found), source, held.get("fit")
 
 
 # ---------------------------------------------------------------- data
 
 
-def split_logs(logs, validate=None):
+def split_logs(logs, validate=None) -> tuple[list, list, Split]:
     """(train logs, held-out logs, description): the validate logs, or every third time block held out."""
     if validate:
-        return logs, validate, {"kind": "validate", "train_logs": len(logs), "validate_logs": len(validate)}
+        return logs, validate, Split(kind="validate", train_logs=len(logs), validate_logs=len(validate))
     train, test = [], []
     for lg in logs:
         block = np.floor((lg.t_s - lg.t_s[0]) / BLOCK_S).astype(int)
         held = block % HOLDOUT_EVERY == HOLDOUT_EVERY - 1
         train.append(_masked(lg, held))
         test.append(_masked(lg, ~held))
-    return train, test, {"kind": "time_blocks", "block_s": BLOCK_S, "held_out": f"every {HOLDOUT_EVERY}rd block"}
+    return train, test, Split(kind="time_blocks", block_s=BLOCK_S, held_out=f"every {HOLDOUT_EVERY}rd block")
 
 
 def _masked(lg, hide):

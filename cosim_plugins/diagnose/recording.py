@@ -42,16 +42,11 @@ def row_errors(diag, key: str) -> np.ndarray:
     out = np.full(diag.timeline.n, np.nan)
     if err is None:
         return out
-    k = diag.steps[_ref(diag)]
+    k = diag.steps[diag.result.reference_key]
     rows = diag.starts + diag.lead + k
     ok = np.all(np.isfinite(err), axis=1) & (rows < diag.timeline.n)
     out[rows[ok]] = np.linalg.norm(err[ok], axis=1)
     return out
-
-
-def _ref(diag) -> str:
-    ref = diag.result["reference_horizon_s"]
-    return next(k for k, v in diag.result["horizons_s"].items() if v == ref)
 
 
 def write_recording(diag, path: Path) -> Path:
@@ -76,7 +71,7 @@ def write_recording(diag, path: Path) -> Path:
         if ok.any():
             rec.send_columns(f"plots/error_mm/{name}", indexes=[rr.TimeColumn("sim_time", duration=t[ok])],
                              columns=rr.Scalars.columns(scalars=errs[ok]))
-    floor = diag.result["noise_floor_mm"]
+    floor = diag.result.noise_floor_mm
     if floor:
         rec.send_columns("plots/error_mm/noise_floor", indexes=[rr.TimeColumn("sim_time", duration=t[[0, -1]])],
                          columns=rr.Scalars.columns(scalars=[floor, floor]))

@@ -24,9 +24,12 @@ parameters trade off.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from cosim_plugins.diagnose.drift import sentence as drift_sentence
+from cosim_plugins.diagnose.result import DiagnosisResult, Verdict
 from cosim_plugins.diagnose.wording import params_text
 
 MIN_REDUCTION = 0.10
@@ -87,28 +90,26 @@ def passes(entry: dict, err_before: float | None, floor: float | None, key: str)
             and explained_share(err_before, left, floor) >= MIN_EXPLAINED)
 
 
-def verdict(result: dict, key: str) -> dict:
-    """The verdict of a diagnosis result (see :mod:`.pipeline`).
-
-    Returns ``{"effect": the first effect named or None, "effects": every effect named, in the order chosen,
-    "lookalikes": [[effect, ...], ...] groups the logs cannot tell apart, "status", "explanation"}``; status is
-    "explained", "discovered" (a form outside the library explains what the named effects leave, or all of it),
-    "drift" (no effect named, and the logs disagree with each other or drift within: :mod:`.drift`),
-    "noise_floor" or "unexplained".
+def verdict(result: DiagnosisResult, key: str) -> Verdict:
+    """The verdict of a diagnosis result (see :mod:`.pipeline`): the first effect named or None, every effect
+    named in the order chosen, the look-alike groups the logs cannot tell apart, the status ("explained",
+    "discovered" (a form outside the library explains what the named effects leave, or all of it), "drift" (no
+    effect named, and the logs disagree with each other or drift within: :mod:`.drift`), "noise_floor" or
+    "unexplained") and the explanation in words (:class:`~.result.Verdict`).
     """
     out = _verdict(result, key)
-    words = drift_sentence(result.get("drift") or {}, key)
-    if words and out["status"] in ("unexplained", "noise_floor"):
-        return {**out, "status": "drift", "explanation": words + " " + _drift_left(result, key)}
+    words = drift_sentence(result.drift, key)
+    if words and out.status in ("unexplained", "noise_floor"):
+        return replace(out, status="drift", explanation=words + " " + _drift_left(result, key))
     if words:
-        return {**out, "explanation": out["explanation"] + " " + words}
+        return replace(out, explanation=out.explanation + " " + words)
     return out
 
 
-def _drift_left(result: dict, key: str) -> str:
+def _drift_left(result: DiagnosisResult, key: str) -> str:
     """What the drifting model leaves, against the noise floor."""
-    d, floor = result["drift"], result["noise"]["floor_mm"][key]
-    left = d["explains"]["rollout_mm"][key]
+    floor = result.noise.floor_mm[key]
+    left = result.drift.explains.rollout_mm[key]
     if floor is None:
         return f"With the drift in, {left:.2f} mm remain at {key} s."
     return (f"With the drift in, {left:.2f} mm remain at {key} s against a noise floor of {floor:.2f} mm"
@@ -116,35 +117,37 @@ def _drift_left(result: dict, key: str) -> str:
                ". " + _clues_text(result)))
 
 
-def _verdict(result: dict, key: str) -> dict:
-    ref = result["reference"] or result["baseline"]
-    err, floor = ref["rollout_mm"][key], result["noise"]["floor_mm"][key]
-    sw = result["stepwise"]
-    steps = sw["steps"]
-    given = (sw.get("given_discovered") or {}).get("steps") or []
-    named = [st["effects"][0] for st in steps + given if not st["group"]]
-    out = {"effect": named[0] if named else None, "effects": named,
-           "lookalikes": [list(st["effects"]) for st in steps + given if st["group"]]}
+def _verdict(result: DiagnosisResult, key: str) -> Verdict:
+    err, floor = result.effects_model.rollout_mm[key], result.noise.floor_mm[key]
+    sw = result.stepwise
+    steps = sw.steps
+    given = sw.given_discovered.steps if sw.given_discovered else []
+    named = [st.effects[0] for st in steps + given if not st.group]
+
+    def out(status: str, explanation: str) -> Verdict:
+        return Verdict(effect=named[0] if named else None, effects=named,
+                       lookalikes=[list(st.effects) for st in steps + given if st.group], status=status,
+                       explanation=explanation)
+
     prefix = _added_text(result, key)
-    left = sw["joint"]["rollout_mm"][key] if steps else err
-    found = result.get("discovered") or {}
+    left = sw.joint.rollout_mm[key] if steps else err
+    found = result.discovered
     text = _steps_text(result, key) if steps else ""
     if discovered_explains(result, key):
-        best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
+        best = next((e for e in result.ranking if e.identifiable), None)
         what = ("what they leave" if steps else "the error") + (
-            "" if steps or best is None else f" (the best listed effect, {best['effect']}, lowers it by only "
-            f"{best['reduction']:.0%})")
+            "" if steps or best is None else f" (the best listed effect, {best.effect}, lowers it by only "
+            f"{best.reduction:.0%})")
         text += (f"{' And a' if steps else 'A'} form outside the library explains {what}: a sparse combination "
-                 f"of force terms lowers it by a further {found['reduction']:.0%} (from {left:.2f} to "
-                 f"{found['rollout_mm'][key]:.2f} mm at {key} s; t = {found['t_stat']:.1f}). "
-                 + _sentence("; ".join(found["words"])) + f". It is written to {found['file']}: rename it, edit its "
-                 f"form and refit with --effects-file {found['file']} --add discovered." + _given_text(result, key))
-        return {**out, "status": "discovered", "explanation": prefix + text.strip()}
+                 f"of force terms lowers it by a further {found.reduction:.0%} (from {left:.2f} to "
+                 f"{found.rollout_mm[key]:.2f} mm at {key} s; t = {found.t_stat:.1f}). "
+                 + _sentence("; ".join(found.words)) + f". It is written to {found.file}: rename it, edit its "
+                 f"form and refit with --effects-file {found.file} --add discovered." + _given_text(result, key))
+        return out("discovered", prefix + text.strip())
     if steps:
         if floor is not None and left > (1 + AT_FLOOR) * floor:
-            found = result.get("discovered")
             more = ("; --discover fits a sparse combination of force terms to what is left" if not found else
-                    f"; discovery: {found['explanation']}" if found["status"] != "found" else "")
+                    f"; discovery: {found.explanation}" if found.status != "found" else "")
             text += (f" The remaining error is still {left / floor:.1f}x the noise floor: no other listed effect "
                      f"passes the tests given these{more}.")
         elif floor is not None:
@@ -153,108 +156,105 @@ def _verdict(result: dict, key: str) -> dict:
             text += (" Next: --add " + " --add ".join(named) + " --save-model MODEL.npz saves the model with "
                      + ("it" if len(named) == 1 else "them") + ", which the Kalman filter and the MPC take as their "
                      "model (components.estimator.params.model=MODEL.npz).")
-        return {**out, "status": "explained", "explanation": prefix + text.strip()}
+        return out("explained", prefix + text.strip())
     horizon = f"{key} s"
     if err is not None and floor is not None and err <= (1 + AT_FLOOR) * floor:
         text = (f"the model is at the noise floor: its held-out error at {horizon} is {err:.2f} mm against "
                 f"{floor:.2f} mm that a perfect model would show with this camera noise; no effect is needed. "
                 "Next: nothing to add for these logs; a smaller effect would show in longer logs, with less "
                 "camera noise, or in conditions these logs do not cover (other speeds, heights, spin rates).")
-        return {**out, "status": "noise_floor", "explanation": prefix + text}
-    best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
-    best_text = (f" The best candidate, {best['effect']}, lowers it by {best['reduction']:.0%} "
-                 f"(t = {best['t_stat']:.1f}), which is not enough." if best else "")
+        return out("noise_floor", prefix + text)
+    best = next((e for e in result.ranking if e.identifiable), None)
+    best_text = (f" The best candidate, {best.effect}, lowers it by {best.reduction:.0%} "
+                 f"(t = {best.t_stat:.1f}), which is not enough." if best else "")
     floor_text = f"a noise floor of {floor:.2f} mm" if floor is not None else "an unknown noise floor"
     text = (f"no listed effect explains the remaining error: {err:.2f} mm at {horizon} against {floor_text}."
             f"{best_text} " + _clues_text(result) + _discovered_text(result, key))
-    return {**out, "status": "unexplained", "explanation": prefix + text}
+    return out("unexplained", prefix + text)
 
 
-def discovered_explains(result: dict, key: str) -> bool:
-    """True when the discovered form (``result["discovered"]``) lowers what the chosen effects leave (or the
+def discovered_explains(result: DiagnosisResult, key: str) -> bool:
+    """True when the discovered form (``result.discovered``) lowers what the chosen effects leave (or the
     reference's error) by >= :data:`MIN_REDUCTION` with t >= :data:`MIN_T`, to at most 1 - :data:`DISCOVERED_MARGIN`
     of it: the verdict then reports it."""
-    sw, found = result["stepwise"], result.get("discovered") or {}
-    ref = result["reference"] or result["baseline"]
-    left = sw["joint"]["rollout_mm"][key] if sw["steps"] else ref["rollout_mm"][key]
-    return bool(found.get("status") == "found" and left and found["reduction"] >= MIN_REDUCTION
-                and found["t_stat"] >= MIN_T and found["rollout_mm"][key] <= (1.0 - DISCOVERED_MARGIN) * left)
+    sw, found = result.stepwise, result.discovered
+    left = sw.joint.rollout_mm[key] if sw.steps else result.effects_model.rollout_mm[key]
+    return bool(found is not None and found.status == "found" and left and found.reduction >= MIN_REDUCTION
+                and found.t_stat >= MIN_T and found.rollout_mm[key] <= (1.0 - DISCOVERED_MARGIN) * left)
 
 
-def _given_text(result: dict, key: str) -> str:
+def _given_text(result: DiagnosisResult, key: str) -> str:
     """What the stepwise search named on top of the discovered form, one sentence per step."""
-    sw = result["stepwise"].get("given_discovered") or {}
-    floor = result["noise"]["floor_mm"][key]
+    sw = result.stepwise.given_discovered
+    floor = result.noise.floor_mm[key]
     parts = []
-    for st in sw.get("steps") or []:
-        share = explained_share(st["rollout_before_mm"], st["rollout_mm"], floor)
-        drop = (f"the held-out error at {key} s falls from {st['rollout_before_mm']:.2f} to {st['rollout_mm']:.2f} mm "
-                f"({st['reduction']:.0%}; t = {st['t_stat']:.1f}"
+    for st in sw.steps if sw else ():
+        share = explained_share(st.rollout_before_mm, st.rollout_mm, floor)
+        drop = (f"the held-out error at {key} s falls from {st.rollout_before_mm:.2f} to {st.rollout_mm:.2f} mm "
+                f"({st.reduction:.0%}; t = {st.t_stat:.1f}"
                 + (f"; {min(share, 1.0):.0%} of the excess over the noise floor)" if floor is not None else ")"))
-        if st["group"]:
-            parts.append(f" Given the discovered form, {' or '.join(st['effects'])} explain part of what is left "
-                         f"about equally well ({drop} with {st['effects'][0]}); none of them is named.")
+        if st.group:
+            parts.append(f" Given the discovered form, {' or '.join(st.effects)} explain part of what is left "
+                         f"about equally well ({drop} with {st.effects[0]}); none of them is named.")
         else:
-            parts.append(f" Given the discovered form, {st['effects'][0]} explains part of what is left: refitted "
-                         f"with it, {drop}. Fitted: {params_text(st['params'])}.")
+            parts.append(f" Given the discovered form, {st.effects[0]} explains part of what is left: refitted "
+                         f"with it, {drop}. Fitted: {params_text(st.params)}.")
     return "".join(parts)
 
 
-def _steps_text(result: dict, key: str) -> str:
+def _steps_text(result: DiagnosisResult, key: str) -> str:
     """One sentence per chosen step (an effect, or a look-alike group with its experiment), then the joint drop."""
-    sw, floor = result["stepwise"], result["noise"]["floor_mm"][key]
+    sw, floor = result.stepwise, result.noise.floor_mm[key]
     parts = []
-    for i, st in enumerate(sw["steps"]):
-        on = st.get("given", [s["effects"][0] for s in sw["steps"][:i]])
+    for i, st in enumerate(sw.steps):
+        on = st.given if st.given is not None else [s.effects[0] for s in sw.steps[:i]]
         given = f" given {' and '.join(on)}" if on else ""
-        share = explained_share(st["rollout_before_mm"], st["rollout_mm"], floor)
-        drop = (f"the held-out error at {key} s falls from {st['rollout_before_mm']:.2f} to {st['rollout_mm']:.2f} mm"
-                f"{given} ({st['reduction']:.0%}; t = {st['t_stat']:.1f}"
+        share = explained_share(st.rollout_before_mm, st.rollout_mm, floor)
+        drop = (f"the held-out error at {key} s falls from {st.rollout_before_mm:.2f} to {st.rollout_mm:.2f} mm"
+                f"{given} ({st.reduction:.0%}; t = {st.t_stat:.1f}"
                 + (f"; {min(share, 1.0):.0%} of the excess over the noise floor, {floor:.2f} mm)" if floor is not None
                    else "; no noise floor: the camera noise could not be estimated)"))
-        if st.get("alone") and not st["group"]:
-            alone = st["alone"]
-            parts.append(f"{st['effects'][0]} explains part of the error only together with {' and '.join(on)}: "
-                         f"alone it lowers it by {alone['reduction']:.0%} (t = {alone['t_stat']:.1f}), not enough, "
-                         f"but refitted with it, {drop}. Fitted: {params_text(st['params'])}.")
+        if st.alone is not None and not st.group:
+            parts.append(f"{st.effects[0]} explains part of the error only together with {' and '.join(on)}: "
+                         f"alone it lowers it by {st.alone.reduction:.0%} (t = {st.alone.t_stat:.1f}), not enough, "
+                         f"but refitted with it, {drop}. Fitted: {params_text(st.params)}.")
             continue
-        if not st["group"]:
-            parts.append(f"{st['effects'][0]} explains {'the' if len(sw['steps']) == 1 else 'part of the'} error: "
-                         f"refitted with it, {drop}. Fitted: {params_text(st['params'])}.")
+        if not st.group:
+            parts.append(f"{st.effects[0]} explains {'the' if len(sw.steps) == 1 else 'part of the'} error: "
+                         f"refitted with it, {drop}. Fitted: {params_text(st.params)}.")
             continue
-        rivals = ", ".join(f"{m} (t = {ev['t_stat']:.1f} at {key} s, {ev['t_horizons']:.1f} over all horizons; "
-                           f"predictions {ev.get('differ_log_mm', ev['differ_mm']):.2f} mm apart on the log where "
-                           f"they differ most; refitted together it adds "
-                           f"{ev['adds']:+.0%})"
-                           for m, ev in st["group_evidence"].items())
-        parts.append(f"{' or '.join(st['effects'])} explain the error about equally well: refitted with "
-                     f"{st['effects'][0]}, {drop}, and these logs cannot tell it from {rivals}. None of them is "
-                     "named: " + _experiment_text(result, st["effects"]))
-    if len(sw["steps"]) > 1:
-        j = sw["joint"]
-        parts.append(f"Together ({' + '.join(j['effects'])}) they lower the held-out error at {key} s from "
-                     f"{sw['steps'][0]['rollout_before_mm']:.2f} to {j['rollout_mm'][key]:.2f} mm "
-                     f"({j['reduction'][key]:.0%}).")
-    for d in sw.get("dropped", ()):
-        parts.append(f"{d['effect']} was dropped once "
-                     + ("the drift between the logs was allowed for" if d.get("given") == "drift" else
+        rivals = ", ".join(f"{m} (t = {ev.t_stat:.1f} at {key} s, {ev.t_horizons:.1f} over all horizons; "
+                           f"predictions {ev.differ_mm if ev.differ_log_mm is None else ev.differ_log_mm:.2f} mm "
+                           f"apart on the log where they differ most; refitted together it adds {ev.adds:+.0%})"
+                           for m, ev in st.group_evidence.items())
+        parts.append(f"{' or '.join(st.effects)} explain the error about equally well: refitted with "
+                     f"{st.effects[0]}, {drop}, and these logs cannot tell it from {rivals}. None of them is "
+                     "named: " + _experiment_text(result, st.effects))
+    if len(sw.steps) > 1:
+        j = sw.joint
+        parts.append(f"Together ({' + '.join(j.effects)}) they lower the held-out error at {key} s from "
+                     f"{result.effects_model.rollout_mm[key]:.2f} to {j.rollout_mm[key]:.2f} mm "
+                     f"({j.reduction[key]:.0%}).")
+    for d in sw.dropped:
+        parts.append(f"{d.effect} was dropped once "
+                     + ("the drift between the logs was allowed for" if d.given == "drift" else
                         "the others were in")
-                     + f" (it then lowers the error by only {d['reduction']:.0%}, t = {d['t_stat']:.1f}).")
+                     + f" (it then lowers the error by only {d.reduction:.0%}, t = {d.t_stat:.1f}).")
     return " ".join(parts)
 
 
-def _experiment_text(result: dict, members: list) -> str:
-    exp = result.get("experiment")
-    if not exp or set(exp["members"]) != set(members):
+def _experiment_text(result: DiagnosisResult, members: list) -> str:
+    exp = result.experiment
+    if not exp or set(exp.members) != set(members):
         return "record logs where their predictions differ (faster spin-rate changes) and diagnose again."
-    return (f"record the experiment designed to tell them apart ({exp['files']['scenario']}, or apply "
-            f"{exp['files']['excitation']} as the spin-rate schedule on the rig: {exp['duration_s']:.0f} s of "
-            f"{exp['kind']}), on which their predictions differ by {exp['separation_mm']:.2f} mm "
-            f"({exp['separation_over_floor']:.1f}x the noise floor); add its log to these and diagnose again.")
+    return (f"record the experiment designed to tell them apart ({exp.files.scenario}, or apply "
+            f"{exp.files.excitation} as the spin-rate schedule on the rig: {exp.duration_s:.0f} s of "
+            f"{exp.kind}), on which their predictions differ by {exp.separation_mm:.2f} mm "
+            f"({exp.separation_over_floor:.1f}x the noise floor); add its log to these and diagnose again.")
 
 
-def _clues_text(result: dict) -> str:
-    clues = result.get("localisation", {}).get("clues", [])
+def _clues_text(result: DiagnosisResult) -> str:
+    clues = result.localisation.clues if result.localisation else []
     return "Clues: " + ("; ".join(clues) if clues else "none stand out") + "."
 
 
@@ -262,33 +262,33 @@ def _sentence(text: str) -> str:
     return text[:1].upper() + text[1:]
 
 
-def _discovered_text(result: dict, key: str) -> str:
-    found = result.get("discovered")
+def _discovered_text(result: DiagnosisResult, key: str) -> str:
+    found = result.discovered
     if not found:
         return " Next: --discover fits a sparse combination of candidate force terms to what is left."
-    if found["status"] != "found":
-        return (f" Discovery: {found['explanation']}. Next: the clues say where the error grows; an effect of "
+    if found.status != "found":
+        return (f" Discovery: {found.explanation}. Next: the clues say where the error grows; an effect of "
                 "that form written in a file (examples/my_effect.py shows how) is refitted with --effects-file "
                 "FILE --add NAME.")
-    words = "; ".join(found["words"])
+    words = "; ".join(found.words)
     return (f" Discovered form: {words}. Refitted with it, the held-out error at {key} s falls by "
-            f"{found['reduction']:.0%} (t = {found['t_stat']:.1f}); it is written to {found['file']}: rename it, "
-            f"edit its form and refit with --effects-file {found['file']} --add discovered.")
+            f"{found.reduction:.0%} (t = {found.t_stat:.1f}); it is written to {found.file}: rename it, "
+            f"edit its form and refit with --effects-file {found.file} --add discovered.")
 
 
-def _added_text(result: dict, key: str) -> str:
-    added = result.get("added")
+def _added_text(result: DiagnosisResult, key: str) -> str:
+    added = result.added
     if not added:
         return ""
-    before, after = added["before_mm"][key], added["rollout_mm"][key]
-    return (f"With {' + '.join(added['effects'])} added, the held-out error at {key} s "
+    before, after = added.before_mm[key], added.rollout_mm[key]
+    return (f"With {' + '.join(added.effects)} added, the held-out error at {key} s "
             f"went from {before:.2f} to {after:.2f} mm. For what remains: ")
 
 
-def fit_notes(result: dict) -> list[str]:
+def fit_notes(result: DiagnosisResult) -> list[str]:
     """Sentences on the quality of the fits: degenerate baseline, trade-offs, unidentifiable candidates."""
     notes = []
-    cond = result["baseline"].get("conditioning") or {}
+    cond = result.baseline.conditioning or {}
     if "Cd1" in cond.get("at_bound", ()):
         notes.append("the baseline fit is degenerate: its linear drag Cd1 sits at its bound 0, so it predicts that "
                      "the swimmer keeps any velocity it has; the model's form cannot represent these logs, and "
@@ -300,10 +300,10 @@ def fit_notes(result: dict) -> list[str]:
     for a, b, c in cond.get("tradeoffs", ())[:2]:
         notes.append(f"in the baseline, {a} and {b} trade off (correlation {c:+.2f}): the logs cannot tell them "
                      "apart, so their values are not meaningful one by one")
-    best = next((e for e in result["ranking"] if e.get("identifiable", True)), None)
+    best = next((e for e in result.ranking if e.identifiable), None)
     if best is not None:
-        own = set(best["params"])
-        ccond = best.get("conditioning") or {}
+        own = set(best.params)
+        ccond = best.conditioning or {}
         for a, b, c in ccond.get("tradeoffs", ()):
             if (a in own) != (b in own):
                 mine, other = (a, b) if a in own else (b, a)
@@ -313,9 +313,9 @@ def fit_notes(result: dict) -> list[str]:
                 break
         pinned = [n for n in ccond.get("at_bound", ()) if n in own]
         if pinned:
-            notes.append(f"{', '.join(pinned)} of {best['effect']} sits at a bound of its range: the fit wants more "
+            notes.append(f"{', '.join(pinned)} of {best.effect} sits at a bound of its range: the fit wants more "
                          "than the form allows")
-    hidden = [e["effect"] for e in result["ranking"] if not e.get("identifiable", True)]
+    hidden = [e.effect for e in result.ranking if not e.identifiable]
     if hidden:
         notes.append(f"not identifiable from these logs: {', '.join(hidden)} (their parameters do not change the "
                      "predictions: the logs never reach the conditions where they act)")

@@ -64,30 +64,34 @@ def heading_relaxation(u: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
     f = np.linalg.norm(u, axis=1)
     target = u / np.where(f > 1e-12, f, 1.0)[:, None]
     a, r = math.exp(-dt_s / tau_s), tau_s / dt_s
-    s0 = np.zeros(len(u))
-    normal = np.zeros((len(u), 3))  # the unit vector in the plane of b and u_hat, normal to u_hat, towards b
+    s0, normal = [0.0] * len(u), [(0.0, 0.0, 0.0)] * len(u)  # tan(theta / 2) at each step's start; the unit
+    # vector in the plane of b and u_hat, normal to u_hat, towards b. Plain floats and lists: the rows depend on
+    # each other, and numpy's per-element overhead would dominate
+    sqrt = math.sqrt
     bx, by, bz = target[0].tolist()
-    for i, (x, y, z) in enumerate(target.tolist()):  # sequential: b carries over; plain floats are fastest here
-        if f[i] < 0.5:
+    for i, (x, y, z, fi) in enumerate(zip(*target.T.tolist(), f.tolist())):
+        if fi < 0.5:
             continue
         c = bx * x + by * y + bz * z
         qx, qy, qz = bx - c * x, by - c * y, bz - c * z
-        q = math.sqrt(qx * qx + qy * qy + qz * qz)
+        q = sqrt(qx * qx + qy * qy + qz * qz)
         if q < 1e-12:
             if c > 0:
                 continue  # on the axis already
             qx, qy, qz = (-y, x, 0.0) if abs(z) < 0.9 else (0.0, -z, y)  # opposite: turn about any normal
-            q = math.sqrt(qx * qx + qy * qy + qz * qz)
+            q = sqrt(qx * qx + qy * qy + qz * qz)
         ex, ey, ez = qx / q, qy / q, qz / q
-        s = q / (1.0 + c) if c > -1.0 + 1e-12 else 1e6  # tan(theta / 2)
+        s = q / (1.0 + c) if c > -1.0 + 1e-12 else 1e6
         s0[i], normal[i] = s, (ex, ey, ez)
         s1 = s * a
-        cos1, sin1 = (1.0 - s1 * s1) / (1.0 + s1 * s1), 2.0 * s1 / (1.0 + s1 * s1)
+        d = 1.0 / (1.0 + s1 * s1)
+        cos1, sin1 = (1.0 - s1 * s1) * d, 2.0 * s1 * d
         bx, by, bz = cos1 * x + sin1 * ex, cos1 * y + sin1 * ey, cos1 * z + sin1 * ez
+    s0 = np.array(s0)
     s1 = s0 * a
     mean_cos = 1.0 - r * np.log((1.0 + s0 * s0) / (1.0 + s1 * s1))
     mean_sin = 2.0 * r * (np.arctan(s0) - np.arctan(s1))
-    return f[:, None] * (mean_cos[:, None] * target + mean_sin[:, None] * normal)
+    return f[:, None] * (mean_cos[:, None] * target + mean_sin[:, None] * np.array(normal))
 
 
 def _heading_lag(u, dt_s, prm):

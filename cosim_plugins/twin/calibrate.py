@@ -292,11 +292,11 @@ def _host(log_paths, validate_paths, s: Settings, named, say) -> dict:
                 progress=lambda m: say(f"  diagnose: {m}"))
         r = d.result
         jm = d.added_model
-        part = r["added"] if named else r["baseline"]
-        params = jm.params() if jm is not None else r["baseline"]["params"]
-        std = jm.std if jm is not None else r["baseline"]["std"]
+        part = r.added if named else r.baseline
+        params = jm.params() if jm is not None else r.baseline.params
+        std = jm.std if jm is not None else r.baseline.std
         host = {"params": params, "std": {k: v for k, v in std.items()}, "effects": list(named),
-                "rollout_mm": part["rollout_mm"], "origin": "physical" + "".join(f" + {e.name}" for e in named),
+                "rollout_mm": part.rollout_mm, "origin": "physical" + "".join(f" + {e.name}" for e in named),
                 "transforms": [e.name for e in named if e.kind != "force"]}
     else:
         host = dict(empty)

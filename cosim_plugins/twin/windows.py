@@ -15,6 +15,7 @@ import numpy as np
 
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose import pipeline
+from cosim_plugins.diagnose.render import to_json
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.timeline import Timeline
 
@@ -49,6 +50,7 @@ def diagnose_windows(logs, validate=None, train_windows: int = pipeline.POLISH_W
     :data:`~cosim_plugins.diagnose.pipeline.POLISH_WINDOWS`, with seed + 1).
     """
     train_logs, test_logs, split = pipeline.split_logs(logs, validate)
+    split = to_json(split)  # twin.json holds it as diagnosis.json does
     dtr, dte, dall = Dataset.from_logs(train_logs), Dataset.from_logs(test_logs), Dataset.from_logs(logs)
     ttr, tte, tall = (Timeline.from_dataset(d) for d in (dtr, dte, dall))
     dt = dall.dt_s

@@ -32,4 +32,4 @@ def record_and_diagnose(job):
     out = Path(root) / variant
     run(RunRequest(SCENARIO, out, [f"duration_s={DURATION_S}", *VARIANTS[variant]], progress=False))
     logs = sorted(out.glob("runs/*/log.csv"))
-    return variant, logs, diagnose(logs, settings=Settings(fit_windows=FIT_WINDOWS)).result
+    return variant, logs, diagnose(logs, settings=Settings(fit_windows=FIT_WINDOWS)).json

@@ -48,7 +48,7 @@ def _diagnose(item):
     logs = blind_sim.simulate(case, Path(folder) / name)
     plugins.reset()
     diag = run(logs, settings=Settings(discover=group == "outside", fit_windows=FIT_WINDOWS))
-    return name, diag.result, diag.discovered_source, [str(p) for p in logs]
+    return name, diag.json, diag.discovered_source, [str(p) for p in logs]
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +92,7 @@ def test_outside_effect_discovered_and_its_file_cuts_the_held_out_error(blind, t
     plugins.reset()
     try:
         again = run(blind["rotating_flow"]["logs"], settings=Settings(effects_files=[path], add=["discovered"],
-                                                                      candidates=[])).result
+                                                                      candidates=[])).json
     finally:
         plugins.reset()
     assert again["added"]["reduction"]["1.0"] >= 0.3
@@ -105,7 +105,7 @@ def test_discover_on_logs_too_short_says_so(blind, tmp_path):
     short = tmp_path / "short.csv"
     short.write_text("\n".join(lines[:301]) + "\n")
     plugins.reset()
-    r = run([short], validate_paths=[long_log], settings=Settings(discover=True, candidates=["background_flow"])).result
+    r = run([short], validate_paths=[long_log], settings=Settings(discover=True, candidates=["background_flow"])).json
     assert r["discovered"]["status"] == "too_short"
     assert "too short to discover" in r["discovered"]["explanation"]
     assert np.isfinite(r["baseline"]["rollout_mm"]["1.0"])
@@ -118,7 +118,7 @@ def test_forty_ms_logs_with_nothing_hidden_name_no_delay(tmp_path, fresh_plugins
     case = blind_sim.draw_cases(60, 1)[18]
     assert (case.group, case.regime["dt_s"]) == ("none", 0.04)
     logs = blind_sim.simulate(case, tmp_path)
-    r = run(logs, settings=Settings(candidates=["sensor_latency", "actuation_lag"], fit_windows=FIT_WINDOWS)).result
+    r = run(logs, settings=Settings(candidates=["sensor_latency", "actuation_lag"], fit_windows=FIT_WINDOWS)).json
     assert r["lead_in_s"] == pytest.approx(0.4)
     assert r["verdict"]["effect"] is None, r["verdict"]["explanation"]
     assert all(e["reduction"] < 0.05 for e in r["ranking"]), [(e["effect"], e["reduction"]) for e in r["ranking"]]
@@ -147,7 +147,7 @@ def test_slow_swimmer_baseline_finds_its_time_constant(tmp_path, fresh_plugins):
     case = blind_sim.draw_cases(60, 2)[18]
     assert case.group == "none" and case.regime["tau_v_s"] == pytest.approx(0.292, abs=0.001)
     logs = blind_sim.simulate(case, tmp_path)
-    r = run(logs, settings=Settings(candidates=[], fit_windows=FIT_WINDOWS)).result
+    r = run(logs, settings=Settings(candidates=[], fit_windows=FIT_WINDOWS)).json
     tau_s = 12.4 / (1000.0 * r["baseline"]["params"]["Cd1"])  # m / Cd1, the swimmer's 12.4 mg
     assert 0.12 < tau_s < 0.6  # without the spread starts: 0.05 s
     assert r["baseline"]["rollout_mm"]["1.0"] < 0.7  # without: 0.85 mm

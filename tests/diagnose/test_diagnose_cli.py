@@ -62,7 +62,7 @@ def test_validate_logs_are_the_held_out_data(plant_logs, tmp_path):
     from cosim_plugins.diagnose.pipeline import Settings, run
 
     logs = plant_logs("background_flow")
-    r = run(logs[:3], logs[3:], Settings(candidates=["background_flow", "quadratic_drag"])).result
+    r = run(logs[:3], logs[3:], Settings(candidates=["background_flow", "quadratic_drag"])).json
     assert r["split"]["kind"] == "validate" and r["validate"] == [str(p) for p in logs[3:]]
     assert r["ranking"][0]["effect"] == "background_flow" and r["ranking"][0]["reduction"] > 0.3
 

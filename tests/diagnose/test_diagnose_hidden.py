@@ -39,7 +39,7 @@ def test_once_both_are_in_no_other_candidate_gains(plant_logs, fresh_plugins):
     """With both effects added by hand the joint fit converges: no remaining candidate gains 10 % (an
     unconverged fit let every extra parameter win by 32-38 %), and nothing more is named."""
     r = run(plant_logs("flow_and_wall"), settings=Settings(add=["background_flow", "wall_drag"],
-                                                           fit_windows=FIT_WINDOWS)).result
+                                                           fit_windows=FIT_WINDOWS)).json
     assert r["added"]["reduction"]["1.0"] >= 0.5
     gains = {e["effect"]: round(e["reduction"], 3) for e in r["ranking"]}
     assert all(g < 0.10 for g in gains.values()), gains

@@ -162,7 +162,7 @@ def test_time_block_split_keeps_halves_apart():
     train, test, info = split_logs([log])
     tr, te = np.isfinite(train[0].p_mm[:, 0]), np.isfinite(test[0].p_mm[:, 0])
     assert not np.any(tr & te) and np.all(tr | te)
-    assert te.mean() == pytest.approx(1 / 3, abs=0.05) and info["block_s"] == BLOCK_S
+    assert te.mean() == pytest.approx(1 / 3, abs=0.05) and info.block_s == BLOCK_S
 
 
 def test_a_latency_reads_the_path_before_each_window(synthetic):
@@ -191,6 +191,9 @@ def test_a_latency_reads_the_path_before_each_window(synthetic):
 
 def test_verdict_names_a_look_alike_group_not_a_member():
     """A step the logs cannot tell from its rival is named as the group; the same step alone is named."""
+    from hand_made import typed
+
+    from cosim_plugins.diagnose.render import to_json
     from cosim_plugins.diagnose.verdict import verdict
 
     def result(group):
@@ -207,11 +210,11 @@ def test_verdict_names_a_look_alike_group_not_a_member():
                                                                       "rollout_mm": {"1.0": 0.64},
                                                                       "reduction": {"1.0": 0.36}}}}
 
-    tie = verdict(result(True), "1.0")
+    tie = to_json(verdict(typed(result(True)), "1.0"))
     assert tie["effect"] is None and tie["effects"] == []
     assert tie["lookalikes"] == [["actuation_lag", "sensor_latency"]]
     assert "None of them is named" in tie["explanation"] and "t = 1.2 at 1.0 s" in tie["explanation"]
-    named = verdict(result(False), "1.0")
+    named = to_json(verdict(typed(result(False)), "1.0"))
     assert named["effect"] == "actuation_lag" and named["effects"] == ["actuation_lag"] and not named["lookalikes"]
     assert "actuation_lag explains the error" in named["explanation"]
 

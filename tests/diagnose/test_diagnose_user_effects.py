@@ -14,7 +14,7 @@ DATA = Path(__file__).parent / "data"
 
 def test_example_effect_file_explains_the_plant_wall_drag(plant_logs, fresh_plugins):
     r = run(plant_logs("wall_drag"), settings=Settings(effects_files=[ROOT / "examples" / "my_effect.py"],
-                                                       candidates=["wall_drag", "wall_drag_exp"])).result
+                                                       candidates=["wall_drag", "wall_drag_exp"])).json
     assert r["file_effects"] == ["wall_drag_exp"]
     ranked = {e["effect"]: e for e in r["ranking"]}
     assert ranked["wall_drag_exp"]["reduction"] >= 0.30
@@ -43,11 +43,11 @@ def swirl_logs(tmp_path_factory):
 
 
 def test_effect_not_in_the_library_is_found_through_a_user_file(swirl_logs, fresh_plugins):
-    lib = run(swirl_logs, settings=Settings(candidates=["background_flow", "gradient_force", "wall_drag"])).result
+    lib = run(swirl_logs, settings=Settings(candidates=["background_flow", "gradient_force", "wall_drag"])).json
     assert lib["verdict"]["effect"] is None  # no library effect explains a swirl
     assert lib["ranking"][0]["reduction"] < 0.3
     mine = run(swirl_logs, settings=Settings(effects_files=[DATA / "swirl_effect.py"],
-                                             candidates=["swirl", "background_flow", "gradient_force"])).result
+                                             candidates=["swirl", "background_flow", "gradient_force"])).json
     best = mine["ranking"][0]
     assert best["effect"] == "swirl" and mine["verdict"]["effect"] == "swirl"
     assert best["reduction"] >= 0.30

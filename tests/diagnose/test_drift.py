@@ -46,7 +46,7 @@ def drifting(tmp_path_factory):
 
 
 def test_drag_drift_between_logs_is_flagged_as_the_combinations_it_moves(drifting):
-    r = run(drifting, settings=Settings(candidates=[])).result
+    r = run(drifting, settings=Settings(candidates=[])).json
     d = r["drift"]
     # drag up 8 % per log: the speed per Hz k/Cd1 and the sinking speed Fvs/(Cd0 + Cd1) fall by 1 - 1/1.08 = 7.4 %
     # per log (the time constant too, but logs at one spin rate barely determine it)
@@ -81,7 +81,7 @@ def test_per_log_refit_ranks_by_its_held_out_drop(drifting, tmp_path):
 
 
 def test_no_drift_flagged_on_logs_of_one_plant(tmp_path):
-    r = run(_logs(tmp_path, 0.0), settings=Settings(candidates=[])).result
+    r = run(_logs(tmp_path, 0.0), settings=Settings(candidates=[])).json
     assert r["drift"]["flagged"] == []
     assert r["verdict"]["status"] != "drift"
 
@@ -108,7 +108,7 @@ def _weight_drifting_logs(folder, rows: int = 4000) -> list:
 
 
 def test_a_weight_drifting_within_each_log_is_flagged_as_a_trend_of_the_sinking_speed(tmp_path):
-    r = run(_weight_drifting_logs(tmp_path), settings=Settings(candidates=[])).result
+    r = run(_weight_drifting_logs(tmp_path), settings=Settings(candidates=[])).json
     d = r["drift"]
     assert d["flagged"] == ["within:sink_speed_mm_s"]
     v = d["within"]["quantities"]["sink_speed_mm_s"]

@@ -42,7 +42,7 @@ def late_camera(tmp_path_factory):
     write_outputs(first, root / "diag")
     run_scenario(RunRequest(root / "diag" / "experiment.yaml", root / "exp", RIG, progress=False))
     second = run([*logs, root / "exp" / "log.csv"], settings=Settings(candidates=FAMILY))
-    return first.result, root / "diag", second.result
+    return first.json, root / "diag", second.json
 
 
 def test_lag_and_latency_are_declared_a_group_not_a_name(late_camera):

@@ -6,18 +6,28 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hand_made import typed
 
+from cosim_plugins.diagnose import verdict as verdict_module
+from cosim_plugins.diagnose.render import to_json
 from cosim_plugins.diagnose.verdict import (
     _block_t,
     explained_share,
-    fit_notes,
     paired_t,
     paired_t_horizons,
     passes,
-    verdict,
 )
 
 K = "1.0"
+
+
+def verdict(r: dict, key: str) -> dict:
+    """The verdict of a hand-made result, in diagnosis.json's form."""
+    return to_json(verdict_module.verdict(typed(r), key))
+
+
+def fit_notes(r: dict) -> list:
+    return verdict_module.fit_notes(typed(r))
 
 
 def result(err=1.0, floor=0.4, steps=(), ranking=(), joint_left=None, **extra):
@@ -489,7 +499,7 @@ def test_the_effects_given_the_discovered_form_in_words_step_by_step():
     r = result(1.0, None)
     r["stepwise"]["given_discovered"] = {"steps": [step("actuation_lag", 0.5, 0.25, t=7.5),
                                                    step("heading_lag", 0.3, 0.2, group=("sensor_latency",))]}
-    assert _given_text(r, K) == (
+    assert _given_text(typed(r), K) == (
         " Given the discovered form, actuation_lag explains part of what is left: refitted with it, the held-out "
         "error at 1.0 s falls from 0.50 to 0.25 mm (50%; t = 7.5). Fitted: k = 2.00 ± 0.10 mm/s."
         " Given the discovered form, heading_lag or sensor_latency explain part of what is left about equally well "
@@ -497,4 +507,12 @@ def test_the_effects_given_the_discovered_form_in_words_step_by_step():
         "named.")
     r = result(1.0, 0.3)
     r["stepwise"]["given_discovered"] = {"steps": [step("actuation_lag", 0.5, 0.2)]}
-    assert "(60%; t = 6.0; 100% of the excess over the noise floor)" in _given_text(r, K)  # 0.3 / 0.2 capped
+    assert "(60%; t = 6.0; 100% of the excess over the noise floor)" in _given_text(typed(r), K)  # 0.3 / 0.2 capped
+
+
+def test_an_effect_the_drift_makes_unnecessary_is_said_so():
+    gone = {**drift(0.5), "given_drift": [{"effect": "wall_drag", "reduction": 0.02, "t_stat": 0.5, "kept": False},
+                                          {"effect": "background_flow", "reduction": 0.4, "t_stat": 6.0, "kept": True}]}
+    text = verdict(result(2.0, 0.4, drift=gone), K)["explanation"]
+    assert "wall_drag, which the search chose before, is not needed once the drift is allowed for." in text
+    assert "background_flow, which" not in text
