@@ -659,9 +659,10 @@ def main(argv: list[str] | None = None) -> int:
         p = argparse.ArgumentParser(prog="bench_tables.py record", description="keep a benchmark's JSON")
         p.add_argument("name", help="the data file's name (docs/benchmarks/data/NAME.json)")
         p.add_argument("--load", default=None, help="the machine's load, as text (default: the load average)")
-        p.add_argument("command", nargs=argparse.REMAINDER, help="-- the benchmark and its arguments")
-        args = p.parse_args(argv[1:])
-        command = args.command[1:] if args.command[:1] == ["--"] else args.command
+        rest = argv[1:]
+        cut = rest.index("--") if "--" in rest else len(rest)  # options before --, the command after it
+        args = p.parse_args(rest[:cut])
+        command = rest[cut + 1:]
         if not command:
             p.error("no command given after --")
         print(f"kept {record(args.name, command, args.load).relative_to(ROOT)}")
