@@ -3,9 +3,10 @@
 The logs of ``scenarios/diagnose/plain.yaml`` (spin rate stepped every few seconds) with the camera's
 frames 80 ms late and its noise 1 px (the lab profile's; at 0.5 px the latency's drop, 17 %, removes
 just under a quarter of the baseline's excess over the lower floor, and nothing is named or grouped):
-refitted with either, the held-out error falls by a sixth or so, and the two do not differ significantly. The diagnosis declares the group instead of a name, designs the experiment
-and writes it; the experiment, run on the same plant and camera, gives a log on which the two predict
-apart, and with it added the diagnosis names the camera latency.
+refitted with either, the held-out error falls by a sixth or so, and the two do not differ significantly.
+The diagnosis declares the group instead of a name, designs the experiment and writes it; the
+experiment, run on the same plant and camera, gives a log on which the two predict apart, and with it
+added the diagnosis names the camera latency.
 """
 
 from __future__ import annotations
