@@ -224,19 +224,24 @@ def _lookalike_round(case: blind_sim.Case, folder: Path, logs: list, fields: dic
     if d.experiment is None:
         out["experiment"] = {"status": "none designed"}
         return out
-    where = folder / "experiment"
-    where.mkdir(parents=True, exist_ok=True)
-    written = [Path(p) for p in d.experiment.write(where)]
-    csv = next(p for p in written if p.suffix == ".csv")
-    extra = blind_sim.simulate_experiment(case, csv, where)
+    extra, again = _fly_experiment(case, folder, logs, d)
     out["experiment"] = {"status": "simulated", "log": str(extra),
                          **{k: (summary or {}).get(k) for k in ("members", "kind", "params", "duration_s",
                                                                  "separation_mm", "floor_mm",
                                                                  "separation_over_floor")}}
-    again, _ = _diagnose(list(logs) + [extra])
     out["after"] = {k: again[k] for k in ("named", "named_effects", "lookalikes", "status", "top", "top_reduction")}
     out["after"]["named_right"] = hidden in again["named_effects"]
     return out
+
+
+def _fly_experiment(case: blind_sim.Case, folder: Path, logs: list, d) -> tuple[Path, dict]:
+    """(the experiment's log, the record fields of the diagnosis with it added): the designed experiment of ``d``
+    written to ``folder/experiment``, its ``experiment_excitation.csv`` flown by the case's plant."""
+    where = folder / "experiment"
+    where.mkdir(parents=True, exist_ok=True)
+    csv = next(p for p in (Path(x) for x in d.experiment.write(where)) if p.suffix == ".csv")
+    extra = blind_sim.simulate_experiment(case, csv, where)
+    return extra, _diagnose(list(logs) + [extra])[0]
 
 
 def _multi_experiment(case: blind_sim.Case, folder: Path, logs: list, record: dict, d) -> dict | None:
@@ -249,10 +254,7 @@ def _multi_experiment(case: blind_sim.Case, folder: Path, logs: list, record: di
         return None
     if d.experiment is None:
         return {"experiment": "none designed", "named_effects": record["named_effects"], "all_named": False}
-    where = folder / "experiment"
-    where.mkdir(parents=True, exist_ok=True)
-    csv = next(p for p in (Path(x) for x in d.experiment.write(where)) if p.suffix == ".csv")
-    again, _ = _diagnose(list(logs) + [blind_sim.simulate_experiment(case, csv, where)])
+    _, again = _fly_experiment(case, folder, logs, d)
     return {"experiment": "simulated", "members": (d.json.get("experiment") or {}).get("members"),
             "named_effects": again["named_effects"], "lookalikes": again["lookalikes"],
             "all_named": hidden <= set(again["named_effects"])}
