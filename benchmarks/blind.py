@@ -35,7 +35,7 @@ it finishes; at the end one JSON object is printed:
   ``visible_named``: fraction naming every hidden library effect that its true
   form alone shows (>= 10 %); ``drawn_visible`` (cases whose every hidden
   effect is visible by the simulator's own measure, ``benchmarks/blind_visible.py``:
-  with ``--multi-draw visible``, the default, each case is redrawn until it
+  with ``--draw visible``, the default, each case is redrawn until it
   is, up to 12 draws) and ``all_named_drawn_visible`` over them;
   ``declared_group`` (cases declaring a look-alike group that holds a hidden
   library effect); ``experiments`` (of those, cases whose designed
@@ -49,7 +49,8 @@ it finishes; at the end one JSON object is printed:
 * ``lookalike``: ``cases``; ``wrong_named`` (cases naming an effect not
   hidden while the hidden one is in no declared look-alike group);
   ``visible`` (cases whose hidden effect the simulator's own measure shows,
-  ``benchmarks/blind_visible.py``; the draw is not redrawn) and
+  ``benchmarks/blind_visible.py``; with ``--draw visible``, the default,
+  each case is redrawn until it does, up to 12 draws) and
   ``resolved_visible`` (``resolved`` over them);
   ``resolved`` (fraction named right at once, or declared in a look-alike
   group and named right once the designed experiment's log is added: the
@@ -112,6 +113,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import blind_sim  # noqa: E402  (the independent simulator beside this file)
 import blind_visible  # noqa: E402  (each hidden effect's visibility, measured with that simulator)
 
+REDRAWN = {"multi": blind_visible.visible_case, "lookalike": blind_visible.visible_lookalike_case}  # --draw visible
 DETECTABLE = 0.10  # a true-form reduction below this: the effect is invisible in these logs
 MIN_T = 3.0  # the verdict's paired t below which two effects are not told apart
 GOOD_SHARE = 0.5  # discovered_ok: the discovered form reaches this share of the true form's reduction
@@ -174,17 +176,17 @@ def _true_refit(logs, source: str, name: str, path: Path) -> tuple[float, dict]:
     return true["added"]["reduction"][key], {k: v["value"] for k, v in true["added"]["params"].items()}
 
 
-def run_case(case: blind_sim.Case, out: Path, multi_draw: str = "visible") -> dict:
+def run_case(case: blind_sim.Case, out: Path, draw_mode: str = "visible") -> dict:
     """Simulate, diagnose blind, refit with the true form(s), and for a look-alike case declared as a group run
-    the designed experiment and diagnose again; one JSON-able record. A multi case is first redrawn until
-    both its effects are visible (``multi_draw`` "visible": :func:`blind_visible.visible_case`) unless
-    ``multi_draw`` is "any" (the draw as it comes)."""
+    the designed experiment and diagnose again; one JSON-able record. A multi or look-alike case is first
+    redrawn until its hidden effects are visible (``draw_mode`` "visible": :func:`blind_visible.visible_case`,
+    :func:`blind_visible.visible_lookalike_case`) unless ``draw_mode`` is "any" (the draw as it comes)."""
     from cosim.contract import plugins
 
     folder = case_folder(out, case)
     drawn_seed, draw = case.seed, None
-    if case.group == "multi" and multi_draw == "visible":
-        case, draw = blind_visible.visible_case(case)
+    if case.group in REDRAWN and draw_mode == "visible":
+        case, draw = REDRAWN[case.group](case)
     logs = blind_sim.simulate(case, folder / "logs")
     t0 = time.perf_counter()
     fields, d = _diagnose(logs)
@@ -206,7 +208,7 @@ def run_case(case: blind_sim.Case, out: Path, multi_draw: str = "visible") -> di
                                                                       folder / "true_form.py")
     if case.group == "lookalike":
         record.update(_lookalike_round(case, folder, logs, fields, d))
-        record["visibility"] = blind_visible.visibility(case)  # drawn as it comes; counted over the visible too
+        record["visibility"] = draw["visibility"] if draw else blind_visible.visibility(case)
     plugins.reset()
     record["seconds"] = round(time.perf_counter() - t0, 1)
     return record
@@ -261,9 +263,9 @@ def _multi_experiment(case: blind_sim.Case, folder: Path, logs: list, record: di
 
 
 def _worker(args) -> dict:
-    case, out, multi_draw = args
+    case, out, draw_mode = args
     try:
-        return run_case(case, Path(out), multi_draw)
+        return run_case(case, Path(out), draw_mode)
     except Exception as exc:  # one failed case is one failed row, never the whole bench
         return {"index": case.index, "seed": case.seed, "group": case.group, "effect": case.effect,
                 "error": f"{type(exc).__name__}: {exc}"}
@@ -435,10 +437,11 @@ def main(argv=None) -> int:
                     + " (default library,none,outside)")
     ap.add_argument("--multi-cases", type=int, default=12, help="cases of the multi group (default 12)")
     ap.add_argument("--lookalike-cases", type=int, default=12, help="cases of the lookalike group (default 12)")
-    ap.add_argument("--multi-draw", choices=("visible", "any"), default="visible",
-                    help="multi cases: redrawn until each hidden effect is visible by the simulator's own measure "
-                         "(visible, the default; benchmarks/blind_visible.py), or taken as drawn (any: the draw "
-                         "of the runs before 26 Nov)")
+    ap.add_argument("--draw", "--multi-draw", dest="draw", choices=("visible", "any"), default="visible",
+                    help="multi and look-alike cases: redrawn until each hidden effect is visible by the "
+                         "simulator's own measure (visible, the default; benchmarks/blind_visible.py), or taken "
+                         "as drawn (any: the draw of the multi runs before 26 Nov and the look-alike runs "
+                         "before 27 Nov)")
     ap.add_argument("--drift-cases", type=int, default=12,
                     help="cases of the drift group, one in three a steady control (default 12)")
     ap.add_argument("--only", choices=BASE_GROUPS,
@@ -495,7 +498,7 @@ def main(argv=None) -> int:
         print(f"resuming: {len(records)} finished cases kept, {len(todo)} to go", file=sys.stderr, flush=True)
     total = len(records) + len(todo)
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(_worker, (c, str(out), args.multi_draw)) for c in todo]
+        futures = [pool.submit(_worker, (c, str(out), args.draw)) for c in todo]
         for done, fut in enumerate(as_completed(futures), len(records) + 1):
             rec = fut.result()
             records.append(rec)
@@ -535,15 +538,15 @@ def _write_case(ap, args, out: Path) -> int:
     try:
         if group == "multi":
             case = blind_sim.draw_multi_case(args.seed, effect.split("+") if effect else None)
-            if args.multi_draw == "visible":
-                case, draw = blind_visible.visible_case(case)
-                print(f"drawn visible: {json.dumps(draw)}")
         elif group == "lookalike":
             case = blind_sim.draw_lookalike_case(args.seed, effect or None)
         elif group == "drift":
             case = blind_sim.draw_drift_case(args.seed, effect or None)
         else:
             case = blind_sim.draw_case(args.seed, group, effect or None)
+        if group in REDRAWN and args.draw == "visible":
+            case, draw = REDRAWN[group](case)
+            print(f"drawn visible: {json.dumps(draw)}")
     except ValueError as exc:
         ap.error(f"--write-case {args.write_case}: {exc}")
     logs = blind_sim.simulate(case, out / "logs")

@@ -229,3 +229,27 @@ def visible_case(case: blind_sim.Case, attempts: int = ATTEMPTS) -> tuple[blind_
     _, trial, vis, chosen = best
     return trial, {"seed": case.seed, "attempts": n, "chosen_attempt": chosen, "visibility": vis,
                    "all_visible": all(v["visible"] for v in vis.values()), "pairs": pairs}
+
+
+def visible_lookalike_case(case: blind_sim.Case, attempts: int = ATTEMPTS) -> tuple[blind_sim.Case, dict]:
+    """(case, draw) for a look-alike case: ``case`` itself when its hidden effect is visible (:func:`visibility`),
+    else the first of up to ``attempts - 1`` redraws of the same effect (regime and magnitude anew, case seeds
+    from the stream [case seed, 10]) that is; when none is, the draw that shows it most. ``draw`` has the keys of
+    :func:`visible_case`'s (``pairs`` is the one effect's list). Rejection sampling, as there: the magnitude still
+    spans its whole drawn range, limited only by what these logs can show."""
+    stream = np.random.default_rng([case.seed, 10])
+    trials = [case] + [int(x) for x in stream.integers(0, 2**31 - 1, max(attempts - 1, 0))]
+    best, n = None, 0
+    for trial in trials:
+        if not isinstance(trial, blind_sim.Case):
+            trial = blind_sim.draw_lookalike_case(trial, case.effect, index=case.index)
+        n += 1
+        vis = visibility(trial)
+        ratio = vis[case.effect]["ratio"] or 0.0
+        if best is None or ratio > best[0]:
+            best = (ratio, trial, vis, n)
+        if vis[case.effect]["visible"]:
+            break
+    _, trial, vis, chosen = best
+    return trial, {"seed": case.seed, "attempts": n, "chosen_attempt": chosen, "visibility": vis,
+                   "all_visible": vis[case.effect]["visible"], "pairs": [[case.effect]]}

@@ -56,7 +56,8 @@ def heading_relaxation(u: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
     theta' = -sin(theta) / tau, tau = c_perp / (m B) [s]: in the plane of b and u_hat, s = tan(theta / 2)
     decays as exp(-t / tau). Over a step from s_0 to s_1 = s_0 e^{-dt/tau}, the means are
     mean cos(theta) = 1 - (tau/dt) ln((1 + s_0^2) / (1 + s_1^2)) and mean sin(theta) = (2 tau/dt)
-    (atan s_0 - atan s_1). b starts on u_hat[0]; a row without a command (|u| < 0.5 Hz) keeps b; f = |u|.
+    (atan s_0 - atan s_1). b starts on the first commanded row's u_hat; a row without a command (|u| < 0.5 Hz)
+    keeps b; f = |u|.
     tau -> 0 returns u.
     """
     if tau_s < 1e-12 or len(u) == 0:
@@ -68,7 +69,10 @@ def heading_relaxation(u: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
     # vector in the plane of b and u_hat, normal to u_hat, towards b. Plain floats and lists: the rows depend on
     # each other, and numpy's per-element overhead would dominate
     sqrt = math.sqrt
-    bx, by, bz = target[0].tolist()
+    commanded = np.flatnonzero(f >= 0.5)
+    if len(commanded) == 0:
+        return u.copy()  # no command: the axis never matters (every row's thrust is |u| < 0.5 Hz times it)
+    bx, by, bz = target[commanded[0]].tolist()
     for i, (x, y, z, fi) in enumerate(zip(*target.T.tolist(), f.tolist())):
         if fi < 0.5:
             continue

@@ -63,3 +63,23 @@ def test_a_pair_that_never_shows_is_drawn_anew_of_the_same_kind(monkeypatch):
     outside = blind_sim.draw_multi_case(7, [hidden, "shear_flow"], index=1)
     got, draw = blind_visible.visible_case(outside, attempts=2)
     assert draw["all_visible"] and hidden not in got.effects and any(e not in blind_sim.LIBRARY for e in got.effects)
+
+
+def test_a_lookalike_case_is_drawn_anew_until_its_effect_shows(monkeypatch):
+    seen = []
+
+    def visibility(case):  # the third draw shows it
+        seen.append(case)
+        return {case.effect: {"ratio": 0.5 * len(seen), "visible": len(seen) == 3}}
+
+    monkeypatch.setattr(blind_visible, "visibility", visibility)
+    case = blind_sim.draw_lookalike_case(11, "heading_lag", index=2)
+    got, draw = blind_visible.visible_lookalike_case(case, attempts=5)
+    assert draw["all_visible"] and draw["attempts"] == draw["chosen_attempt"] == 3 and got is seen[2]
+    assert got.effect == "heading_lag" and got.index == 2 and got.truth != case.truth  # the magnitude drawn anew
+    seen.clear()
+    monkeypatch.setattr(blind_visible, "visibility",
+                        lambda c: seen.append(c) or {c.effect: {"ratio": [0.2, 0.9, 0.4][len(seen) - 1],
+                                                                "visible": False}})
+    got, draw = blind_visible.visible_lookalike_case(case, attempts=3)
+    assert not draw["all_visible"] and draw["chosen_attempt"] == 2 and got is seen[1]  # the one that shows most

@@ -100,6 +100,8 @@ def test_heading_lag_is_the_overdamped_magnetic_alignment():
     small = np.column_stack([np.ones(30), np.r_[np.zeros(5), np.full(25, 1e-3)], np.zeros(30)]) * 10.0
     assert np.allclose(heading_relaxation(small, dt, tau)[:, 1], first_order_lag(small, dt, tau)[:, 1], rtol=1e-5,
                        atol=1e-9)
+    idle = np.vstack([np.zeros((4, 3)), u])  # rows without a command first: the axis starts on the first command
+    assert np.abs(heading_relaxation(idle, dt, tau)[4:] - got).max() < 1e-12
 
 
 def test_saved_model_with_a_library_term_loads(tmp_path):
