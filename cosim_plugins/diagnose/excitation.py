@@ -83,13 +83,14 @@ class Excitation:
         return asdict(self)
 
 
-def candidates(band_hz: tuple, duration_s: float) -> list[Excitation]:
-    """Every excitation an experiment design tries within ``band_hz`` (low, high) [Hz]."""
+def candidates(band_hz: tuple, duration_s: float, stops: bool = True) -> list[Excitation]:
+    """Every excitation an experiment design tries within ``band_hz`` (low, high) [Hz]; the stop-and-go ones
+    only when ``stops``."""
     lo, hi = band_hz
     out = [Excitation("steps", lo, hi, duration_s, period_s=p) for p in STEP_PERIODS_S]
     out += [Excitation("chirp", lo, hi, duration_s, chirp_from_hz=a, chirp_to_hz=b) for a, b in CHIRPS_HZ]
     out.append(Excitation("constant", lo, hi, duration_s))
-    out += [Excitation("stop", lo, hi, duration_s, period_s=p) for p in STOP_PERIODS_S]
+    out += [Excitation("stop", lo, hi, duration_s, period_s=p) for p in STOP_PERIODS_S] if stops else []
     return out
 
 

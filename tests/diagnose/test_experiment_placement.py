@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from cosim.contract.plugins import lookup
-from cosim_plugins.diagnose.experiment import design_experiment, placements
+from cosim_plugins.diagnose.experiment import any_force, design_experiment, placements
 from cosim_plugins.identify import synthetic as syn
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects
@@ -74,3 +74,23 @@ def test_a_wall_drag_and_a_flow_are_separated_beyond_the_old_spin_only_design(wo
     assert exp.place != "centre" or exp.excitation.kind == "stop"
     summary = exp.summary()
     assert summary.path.center_mm == exp.center_mm and summary.separation_over_floor >= 3.0
+
+
+def test_stops_are_tried_for_forces_only():
+    """A stop shows what moves a swimmer at rest: a force; a lag or a latency only its start from rest."""
+    lag = _member("actuation_lag", {"actuation_lag.tau": 0.2}).model
+    late = _member("sensor_latency", {"sensor_latency.delay": 4.0}).model
+    flow = _member("background_flow", {"background_flow.w_x": 0.4}).model
+    assert not any_force(["actuation_lag", "sensor_latency"], [lag, late])
+    assert any_force(["actuation_lag", "background_flow"], [lag, flow])
+
+
+def test_members_that_do_not_depend_on_the_position_keep_the_central_circle(workspace_timeline):
+    """Two flows in different directions differ the same anywhere: the circle stays at the centre."""
+    step = SimpleNamespace(effects=["along_x", "along_y"], member_fits={
+        "along_x": _member("background_flow", {"background_flow.w_x": 0.4, "background_flow.w_y": 0.0}),
+        "along_y": _member("background_flow", {"background_flow.w_x": 0.0, "background_flow.w_y": 0.4})})
+    exp = design_experiment(step, workspace_timeline, SimpleNamespace(lead=10, steps={"0.2": 10, "1.0": 50}),
+                            FLOOR_MM, duration_s=10.0)
+    assert exp.place == "centre" and exp.separation_mm > 0
+    assert max(x.separation_mm for x in exp.tried) < 1.1 * exp.separation_mm
