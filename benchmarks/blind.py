@@ -55,7 +55,8 @@ it finishes; at the end one JSON object is printed:
   ``resolved`` (fraction named right at once, or declared in a look-alike
   group and named right once the designed experiment's log is added: the
   bench simulates the case's plant under the experiment's
-  ``experiment_excitation.csv`` and diagnoses again); ``named_at_once``
+  ``experiment_excitation.csv``, on the circle its ``experiment.yaml`` names,
+  and diagnoses again); ``named_at_once``
   (fraction); ``declared`` (cases whose hidden effect is in a declared
   group); ``experiments`` (cases whose experiment was simulated);
 * ``drift``: ``cases`` (a parameter of the plant drifts: drag, thrust or net
@@ -85,7 +86,8 @@ logs to try ``cosim diagnose`` on by hand; GROUP is also ``multi`` (EFFECT:
 two names joined by ``+``), ``lookalike`` or ``drift`` (EFFECT: between, within or
 steady). With ``--schedule CSV`` (a
 designed experiment's ``t_s,freq_hz``) it also simulates that experiment's
-log into ``DIR/experiment/log_experiment.csv``.
+log into ``DIR/experiment/log_experiment.csv``, on the circle of the
+``experiment.yaml`` beside the CSV (else on a circle of its own).
 
 Records carry ``group`` and ``index`` (the index within the group's own draw:
 ``draw_cases`` for library/none/outside, ``draw_multi_cases``,
@@ -238,12 +240,31 @@ def _lookalike_round(case: blind_sim.Case, folder: Path, logs: list, fields: dic
 
 def _fly_experiment(case: blind_sim.Case, folder: Path, logs: list, d) -> tuple[Path, dict]:
     """(the experiment's log, the record fields of the diagnosis with it added): the designed experiment of ``d``
-    written to ``folder/experiment``, its ``experiment_excitation.csv`` flown by the case's plant."""
+    written to ``folder/experiment``, its ``experiment_excitation.csv`` flown by the case's plant on the circle
+    its ``experiment.yaml`` names (:func:`_scenario_path`)."""
     where = folder / "experiment"
     where.mkdir(parents=True, exist_ok=True)
-    csv = next(p for p in (Path(x) for x in d.experiment.write(where)) if p.suffix == ".csv")
-    extra = blind_sim.simulate_experiment(case, csv, where)
+    files = [Path(x) for x in d.experiment.write(where)]
+    csv = next(p for p in files if p.suffix == ".csv")
+    scenario = next(p for p in files if p.suffix == ".yaml")
+    extra = blind_sim.simulate_experiment(case, csv, where, path=_scenario_path(scenario))
     return extra, _diagnose(list(logs) + [extra])[0]
+
+
+def _scenario_path(scenario: Path) -> dict:
+    """The path of an experiment scenario (``path: {plugin: circle, params: {radius_mm, center_mm}}``) as the
+    simulator's path description: a horizontal circle, counter-clockwise from centre + (radius, 0, 0), as the
+    design ran it. Only the driver reads it; the simulator's physics and controller are its own."""
+    import yaml
+
+    path = (yaml.safe_load(scenario.read_text()) or {}).get("path") or {}
+    prm = path.get("params") or {}
+    if path.get("plugin") != "circle" or "radius_mm" not in prm or "center_mm" not in prm:
+        raise ValueError(f"{scenario}: the bench flies a circle (path: {{plugin: circle, params: {{radius_mm, "
+                         f"center_mm}}}}), not {path!r}")
+    return {"kind": "circle", "radius_mm": float(prm["radius_mm"]), "yaw_deg": 0.0, "tilt_deg": 0.0,
+            "tilt_axis_deg": 0.0, "direction": 1, "start": 0.0, "near_wall": False,
+            "offset_mm": [float(x) for x in prm["center_mm"]]}
 
 
 def _multi_experiment(case: blind_sim.Case, folder: Path, logs: list, record: dict, d) -> dict | None:
@@ -559,7 +580,9 @@ def _write_case(ap, args, out: Path) -> int:
     print(f"wrote {len(logs)} logs to {out / 'logs'} ({case.group} {case.effect or ''} {case.truth})")
     if args.schedule:
         try:
-            extra = blind_sim.simulate_experiment(case, args.schedule, out / "experiment")
+            scenario = Path(args.schedule).with_name("experiment.yaml")  # its circle, when written beside it
+            path = _scenario_path(scenario) if scenario.is_file() else None
+            extra = blind_sim.simulate_experiment(case, args.schedule, out / "experiment", path=path)
         except (OSError, ValueError) as exc:
             ap.error(f"--schedule {args.schedule}: {exc}")
         print(f"wrote the experiment's log {extra}")

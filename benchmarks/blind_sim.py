@@ -1040,14 +1040,15 @@ def experiment_path(case: Case, rng) -> dict:
             "near_wall": False, "offset_mm": centre.tolist()}
 
 
-def simulate_experiment(case: Case, schedule_csv, out_dir, path: int | None = None,
+def simulate_experiment(case: Case, schedule_csv, out_dir, path: int | dict | None = None,
                         name: str = "log_experiment.csv") -> Path:
     """One more log of the case's plant (same hidden effects and camera regime, fresh stream [case seed, 4])
     with the spin rate of ``schedule_csv`` (``t_s,freq_hz``, each rate held from its row's time to the next;
     before the first row, the first rate). Its length is the schedule's: the last row's time plus the spacing
     before it (one control period for a single row), in control periods of the case. The direction comes
-    from the simulator's pure pursuit on the case's path ``path`` (an index into ``regime["paths"]``) or, by
-    default, on a new circle (:func:`experiment_path`). Writes and returns ``out_dir/name``.
+    from the simulator's pure pursuit on the case's path ``path`` (an index into ``regime["paths"]``), on the
+    path ``path`` describes (a dict, see :func:`path_points`: the experiment's own path, as a rig would follow
+    it) or, by default, on a new circle (:func:`experiment_path`). Writes and returns ``out_dir/name``.
     """
     rng = np.random.default_rng([case.seed, 4])
     t, f = read_schedule(schedule_csv)
@@ -1057,6 +1058,8 @@ def simulate_experiment(case: Case, schedule_csv, out_dir, path: int | None = No
     rate = f[np.maximum(np.searchsorted(t, np.arange(n) * dt + 1e-6, side="right") - 1, 0)]  # 1 us: CSV rounding
     if path is None:
         desc = experiment_path(case, rng)
+    elif isinstance(path, dict):
+        desc = path
     elif 0 <= path < len(case.regime["paths"]):
         desc = case.regime["paths"][path]
     else:

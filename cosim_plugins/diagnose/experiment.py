@@ -4,7 +4,14 @@ For a look-alike group, every member's fitted model (the model before the
 group plus that member) runs the experiment in closed loop: a pure-pursuit
 controller steers along a horizontal circle in the logs' workspace while a
 candidate excitation (:mod:`.excitation`) sets the spin rate within the logs'
-band. What each member predicts the camera would log (its sensor effects
+band (or, when a member is a force, stops and goes: :func:`any_force`). The
+candidates are every excitation on every placement of the circle
+(:func:`placements`): at the workspace's centre, and
+pushed to each side of the box the logs visited (their positions'
+:data:`BOX_PERCENTILES` per axis), so an effect that depends on where the
+swimmer is (a wall's drag, a field's gradient) is probed where the logs say
+the rig can go (the centre unless a side separates the members
+:data:`PLACE_GAIN` x more). What each member predicts the camera would log (its sensor effects
 applied, no noise) is one synthetic log per member; every other member is
 then scored on it exactly as diagnose scores a model, by its held-out
 open-loop error at the reference horizon with the initial state solved on the
@@ -21,7 +28,9 @@ floor needs :data:`DURATION_S`, a smaller one more windows, up to
 :class:`Experiment` writes ``experiment.yaml`` (a scenario: the path, PI
 control, the excitation as the ``diagnose.spin_schedule`` shaper) and
 ``experiment_excitation.csv`` (``t_s,freq_hz``: the spin-rate schedule alone,
-which any rig or simulator applies under its own path controller).
+which any rig or simulator applies under its own path controller, on the
+circle the scenario's ``path`` names: where the circle is matters as much as
+the schedule when an effect depends on the position).
 """
 
 from __future__ import annotations
@@ -45,6 +54,11 @@ SEPARATION_TARGET = 1.0
 LOOKAHEAD_MM = 9.0  # the design's pure pursuit (the PI controller's default look-ahead)
 PATH_DS_MM = 0.5  # spacing of the circle's points
 RADIUS_MM = (15.0, 35.0)  # the circle's radius: half the logs' horizontal spread, within this range
+BOX_PERCENTILES = (1.0, 99.0)  # the workspace's box: these percentiles of the logged positions, per axis
+# a circle off the centre is chosen only when it separates the members this much more than the best central
+# candidate: members that do not depend on the position differ by rounding from place to place, and the centre
+# keeps the swimmer furthest from the box's edges
+PLACE_GAIN = 1.1
 INPUT_WINDOW_S = 5.0  # rows of command history an input effect is evaluated on at each step
 BAND_PERCENTILES = (5.0, 95.0)  # the spin-rate band: these percentiles of the logged spin rates
 SCENARIO_FILE, EXCITATION_FILE = "experiment.yaml", "experiment_excitation.csv"
@@ -59,6 +73,7 @@ class Experiment:
     dt_s: float
     center_mm: list
     radius_mm: float
+    place: str  # where the circle is (:func:`placements`): "centre" or the side of the workspace, e.g. "+z"
     separation_mm: float  # smallest mean separation (over windows and horizons) over the ordered pairs of members
     floor_mm: float | None
     tried: list = field(default_factory=list)  # [Tried] every candidate
@@ -93,9 +108,11 @@ class Experiment:
                                                  f"{self.floor_mm:.2f} mm)" if self.floor_mm else "")
         shaper = ", ".join(f"{k}: {v!r}" if isinstance(v, str) else f"{k}: {v:g}" for k, v in e.params().items())
         cx, cy, cz = self.center_mm
+        where = ("at the centre of the logs' workspace" if self.place == "centre" else
+                 f"at the {self.place} side of the logs' workspace")
         return f"""# The experiment cosim diagnose designed to tell {' / '.join(self.members)} apart.
 #
-# PI path following on a horizontal circle in the logs' workspace while the spin rate follows
+# PI path following on a horizontal circle {where} while the spin rate follows
 # {e.describe()} (the schedule alone is in {EXCITATION_FILE}: t_s,freq_hz, for a rig or
 # simulator that applies it under its own path controller). The members' predictions of this
 # log differ by {sep} at the reference horizon.
@@ -149,14 +166,15 @@ def design_experiment(step, tl: Timeline, fitter, floor_mm: float | None, say=No
     members = list(step.effects)
     models = [step.member_fits[m].model for m in members]
     band = spin_band(tl)
-    center, radius = workspace(tl)
-    path = circle_points(center, radius)
-    tried = candidates(band, duration_s)
+    places, radius = placements(tl)
+    shapes = candidates(band, duration_s, stops=any_force(members, models))
+    tried = [(name, c, e) for name, c in places for e in shapes]  # every excitation on every placement
     dt = tl.dt_s
     n = int(round(duration_s / dt))
-    freq = np.stack([e.freq_hz(np.arange(n) * dt) for e in tried])  # (K, n)
-    start = np.asarray(center) + [radius, 0.0, 0.0]
-    logs = [simulate(jm, freq, dt, path, start) for jm in models]  # per member: (u (K, n, 3), seen (K, n, 3))
+    freq = np.stack([e.freq_hz(np.arange(n) * dt) for _, _, e in tried])  # (K, n)
+    paths = np.stack([circle_points(c, radius) for _, c, _ in tried])  # (K, N, 3)
+    start = np.stack([np.asarray(c) + [radius, 0.0, 0.0] for _, c, _ in tried])  # (K, 3)
+    logs = [simulate(jm, freq, dt, paths, start) for jm in models]  # per member: (u (K, n, 3), seen (K, n, 3))
     timelines = [_timeline(u, seen, dt) for u, seen in logs]
     sep = np.full(len(tried), np.inf)
     for a, truth in enumerate(timelines):
@@ -171,13 +189,31 @@ def design_experiment(step, tl: Timeline, fitter, floor_mm: float | None, say=No
             per = np.array([np.nanmean(norm[truth.log[starts] == k]) for k in range(len(tried))])
             sep = np.minimum(sep, np.nan_to_num(per, nan=0.0))
     best = int(np.argmax(sep))
-    record = [Tried(excitation=e.describe(), separation_mm=float(s)) for e, s in zip(tried, sep)]
-    chosen = replace(tried[best], duration_s=sized_duration(float(sep[best]), floor_mm, duration_s))
-    say(f"experiment: {chosen.describe()}: the members' predictions differ by {sep[best]:.2f} mm"
+    central = np.array([i for i, (name, _, _) in enumerate(tried) if name == "centre"])
+    at_centre = int(central[np.argmax(sep[central])])
+    if sep[best] < PLACE_GAIN * sep[at_centre]:
+        best = at_centre
+    record = [Tried(excitation=e.describe(), separation_mm=float(s), place=name) for (name, _, e), s in zip(tried, sep)]
+    place, center, shape = tried[best]
+    chosen = replace(shape, duration_s=sized_duration(float(sep[best]), floor_mm, duration_s))
+    say(f"experiment: {chosen.describe()} on the circle at the workspace's {place}: the members' predictions "
+        f"differ by {sep[best]:.2f} mm"
         + (f" ({sep[best] / floor_mm:.1f}x the noise floor)" if floor_mm else "")
         + f"; {chosen.duration_s:.0f} s long")
     return Experiment(members=members, excitation=chosen, dt_s=dt, center_mm=[float(x) for x in center],
-                      radius_mm=float(radius), separation_mm=float(sep[best]), floor_mm=floor_mm, tried=record)
+                      radius_mm=float(radius), place=place, separation_mm=float(sep[best]), floor_mm=floor_mm,
+                      tried=record)
+
+
+def any_force(members: list, models: list) -> bool:
+    """Whether a member of the group is a force effect: only then does the design try stop-and-go schedules.
+
+    At rest only a force moves the swimmer (a flow pushes it, a drag does not), so stops tell forces apart. An
+    input or a sensor effect (a lag, a latency) has nothing to act on at rest but the start from it, a regime
+    no log showed, where the baseline's own start-up is untested: on the plant FMU a stop-and-go experiment
+    for a latency / lag pair shifted the latency's fit by 15 % and left the pair tied.
+    """
+    return any(e.kind == "force" for name, jm in zip(members, models) for e in jm.effects if e.name == name)
 
 
 def sized_duration(separation_mm: float, floor_mm: float | None, base_s: float = DURATION_S) -> float:
@@ -211,6 +247,31 @@ def workspace(tl: Timeline) -> tuple[np.ndarray, float]:
     return center, float(np.clip(0.5 * spread, *RADIUS_MM))
 
 
+def placements(tl: Timeline) -> tuple[list, float]:
+    """([(name, centre (3,) [mm])], radius [mm]): where the experiment's circle may go.
+
+    The circle of :func:`workspace` at its centre ("centre"), then moved along each axis to either side of
+    the box the logs visited (their positions' :data:`BOX_PERCENTILES`): horizontally until the circle
+    touches the box ("-x", "+x", "-y", "+y"), vertically to the box's floor or ceiling ("-z", "+z"). A side
+    the circle cannot move toward (the box narrower than the circle, or the centre already there) is left out.
+    """
+    center, radius = workspace(tl)
+    p = tl.p[np.all(np.isfinite(tl.p), axis=1)]
+    if len(p) == 0:
+        return [("centre", center)], radius
+    lo, hi = np.percentile(p, BOX_PERCENTILES, axis=0)
+    out = [("centre", np.asarray(center, dtype=float))]
+    for axis in range(3):
+        reach = 0.0 if axis == 2 else radius  # how far the circle reaches from its centre along the axis
+        for sign, edge in ((-1, lo[axis] + reach), (+1, hi[axis] - reach)):
+            if sign * (edge - center[axis]) <= PATH_DS_MM:
+                continue
+            c = np.array(center, dtype=float)
+            c[axis] = edge
+            out.append((("-" if sign < 0 else "+") + "xyz"[axis], c))
+    return out, radius
+
+
 def circle_points(center, radius_mm: float) -> np.ndarray:
     """(N, 3) [mm] points of a horizontal circle, counter-clockwise, :data:`PATH_DS_MM` apart."""
     n = max(int(2 * np.pi * radius_mm / PATH_DS_MM), 16)
@@ -224,13 +285,16 @@ def simulate(jm, freq: np.ndarray, dt_s: float, path: np.ndarray, start_mm) -> t
     Args:
         jm: a JointModel (host, force, input and sensor effects).
         freq: (K, n) spin rate [Hz] per control period.
-        path: (N, 3) [mm] closed path the pure pursuit follows; start_mm (3,) the start at rest.
+        path: (N, 3) [mm] closed path the pure pursuit follows, or (K, N, 3) one per schedule; start_mm (3,) or
+            (K, 3) the start at rest.
     Returns:
         (u (K, n, 3) logged commands [Hz], seen (K, n, 3) what the camera logs [mm], no noise).
     """
     k, n = freq.shape
     x = np.zeros((6, k))
-    x[:3] = np.asarray(start_mm, dtype=float)[:, None]
+    x[:3] = np.broadcast_to(np.asarray(start_mm, dtype=float), (k, 3)).T
+    path = np.broadcast_to(path, (k, *path.shape[-2:]))
+    rows = np.arange(k)
     u = np.zeros((n, k, 3))
     pos = np.empty((n + 1, k, 3))
     pos[0] = x[:3].T
@@ -240,8 +304,8 @@ def simulate(jm, freq: np.ndarray, dt_s: float, path: np.ndarray, start_mm) -> t
     prev = None
     for i in range(n):
         here = x[:3].T
-        d = ((path[None] - here[:, None]) ** 2).sum(-1)  # (K, N)
-        target = path[(d.argmin(1) + ahead) % len(path)]
+        d = ((path - here[:, None]) ** 2).sum(-1)  # (K, N)
+        target = path[rows, (d.argmin(1) + ahead) % path.shape[1]]
         to = target - here
         u[i] = freq[:, i, None] * to / np.maximum(np.linalg.norm(to, axis=1, keepdims=True), 1e-9)
         ue = _effective(jm, u[max(0, i - window + 1): i + 1], dt_s, prm)

@@ -255,14 +255,15 @@ def _stepwise_section(r: DiagnosisResult, key: str) -> list[str]:
     if exp:
         lines += ["", "## The experiment that tells the look-alikes apart", "",
                   f"{' / '.join(exp.members)} predict these logs alike. Over the excitations tried (the spin "
-                  f"rate within the logs' band, a PI controller holding the swimmer on a circle of "
-                  f"{exp.path.radius_mm:.0f} mm), {exp.kind} for {exp.duration_s:g} s separates their "
+                  "rate within the logs' band or stopping and going, a PI controller holding the swimmer on a "
+                  f"circle of {exp.path.radius_mm:.0f} mm at the centre or a side of the logs' workspace), "
+                  f"{exp.kind} for {exp.duration_s:g} s separates their "
                   f"predictions most: by {_f(exp.separation_mm)} mm at {key} s"
                   + (f", {exp.separation_over_floor:.1f}x the noise floor" if exp.separation_over_floor else "")
                   + f". Run `{exp.files.scenario}` (or apply `{exp.files.excitation}` as the spin-rate "
                   "schedule on the rig), add its log.csv to these logs and diagnose again.", "",
-                  "| excitation | separation [mm] |", "|---|---|"]
-        lines += [f"| {x.excitation} | {_f(x.separation_mm)} |" for x in exp.tried]
+                  "| excitation | circle | separation [mm] |", "|---|---|---|"]
+        lines += [f"| {x.excitation} | {x.place} | {_f(x.separation_mm)} |" for x in exp.tried]
     return lines
 
 

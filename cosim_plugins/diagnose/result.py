@@ -314,10 +314,12 @@ class ExperimentFiles:
 
 @dataclass
 class Tried:
-    """An excitation the experiment design tried (words) and the predicted ``separation_mm`` of the members."""
+    """An excitation the experiment design tried (words) on the circle at ``place`` (the workspace's "centre" or
+    a side, e.g. "+z") and the predicted ``separation_mm`` of the members."""
 
     excitation: str
     separation_mm: float
+    place: str = "centre"
 
 
 @dataclass

@@ -247,8 +247,13 @@ def _experiment_text(result: DiagnosisResult, members: list) -> str:
     exp = result.experiment
     if not exp or set(exp.members) != set(members):
         return "record logs where their predictions differ (faster spin-rate changes) and diagnose again."
+    where = ""
+    if exp.path is not None:  # the circle matters: an effect of the position differs only where it acts
+        c = exp.path.center_mm
+        where = (f" on a circle of {exp.path.radius_mm:.0f} mm about ({c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}) mm"
+                 if len(c) == 3 else "")
     return (f"record the experiment designed to tell them apart ({exp.files.scenario}, or apply "
-            f"{exp.files.excitation} as the spin-rate schedule on the rig: {exp.duration_s:.0f} s of "
+            f"{exp.files.excitation} as the spin-rate schedule on the rig{where}: {exp.duration_s:.0f} s of "
             f"{exp.kind}), on which their predictions differ by {exp.separation_mm:.2f} mm "
             f"({exp.separation_over_floor:.1f}x the noise floor); add its log to these and diagnose again.")
 

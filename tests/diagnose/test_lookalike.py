@@ -18,6 +18,7 @@ import pytest
 
 from cosim.api import RunRequest
 from cosim.api import run as run_scenario
+from cosim_plugins.diagnose.experiment import PLACE_GAIN
 from cosim_plugins.diagnose.pipeline import Settings, run
 from cosim_plugins.diagnose.report import write_outputs
 from cosim_plugins.resources import SCENARIOS_DIR
@@ -65,7 +66,11 @@ def test_the_experiment_is_written_within_the_logs_band(late_camera):
     r, folder, _ = late_camera
     exp = r["experiment"]
     assert set(exp["members"]) >= {"sensor_latency", "actuation_lag"}
-    assert exp["separation_mm"] > 0 and exp["separation_mm"] == max(x["separation_mm"] for x in exp["tried"])
+    central = [x["separation_mm"] for x in exp["tried"] if x["place"] == "centre"]
+    assert exp["separation_mm"] > 0 and exp["separation_mm"] == max(central)
+    # a lag and a latency do not depend on where the swimmer is: the circle stays at the workspace's centre
+    assert max(x["separation_mm"] for x in exp["tried"]) < PLACE_GAIN * exp["separation_mm"]
+    assert not any(x["excitation"].startswith("stop") for x in exp["tried"])  # no force among them: no stops
     with open(folder / "experiment_excitation.csv") as fh:
         rows = list(csv.reader(fh))
     assert rows[0] == ["t_s", "freq_hz"] and len(rows) - 1 == round(exp["duration_s"] / r["dt_s"])

@@ -213,13 +213,15 @@ def test_a_tie_names_no_member_and_asks_for_logs_where_they_differ():
 def test_a_tie_points_to_the_experiment_designed_for_its_members():
     exp = {"members": ["sensor_latency", "actuation_lag"], "duration_s": 60.0, "kind": "spin-rate steps",
            "separation_mm": 0.9, "separation_over_floor": 2.25,
-           "files": {"scenario": "exp.yaml", "excitation": "exp.csv"}}
+           "files": {"scenario": "exp.yaml", "excitation": "exp.csv"},
+           "path": {"plugin": "circle", "radius_mm": 20.0, "center_mm": [-25.8, 24.6, -3.9]}}
     rival = {"sensor_latency": {k: v for k, v in RIVAL["sensor_latency"].items() if k != "differ_log_mm"}}
     tie = step("actuation_lag", 1.0, 0.45, group=["sensor_latency"], evidence=rival)
     text = verdict(result(1.0, 0.4, steps=[tie], joint_left=0.45, experiment=exp), K)["explanation"]
     assert ("predictions 0.05 mm apart on the log where they differ most" in text)  # pooled when no per-log figure
     assert ("None of them is named: record the experiment designed to tell them apart (exp.yaml, or apply exp.csv "
-            "as the spin-rate schedule on the rig: 60 s of spin-rate steps), on which their predictions differ by "
+            "as the spin-rate schedule on the rig on a circle of 20 mm about (-26, 25, -4) mm: 60 s of spin-rate "
+            "steps), on which their predictions differ by "
             "0.90 mm (2.2x the noise floor); add its log to these and diagnose again.") in text
     other = {**exp, "members": ["actuation_lag", "wall_drag"]}
     text = verdict(result(1.0, 0.4, steps=[tie], joint_left=0.45, experiment=other), K)["explanation"]
