@@ -180,7 +180,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
         if pending is not None:
             if not _confirmed(fitter, steps, pending, by_name, floor.get(key), key, say):
                 steps, current, remaining = steps[:pending[0]], pending[1], pending[2]
-                stop = "none_passes"
+                stop, pending = "none_passes", None  # both steps went: nothing tentative is left to drop below
                 break
             confirmed = steps[pending[0]]
             remaining = [e for e in remaining if e.name not in confirmed.effects]
