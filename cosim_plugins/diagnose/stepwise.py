@@ -180,7 +180,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
         if pending is not None:
             if not _confirmed(fitter, steps, pending, by_name, floor.get(key), key, say):
                 steps, current, remaining = steps[:pending[0]], pending[1], pending[2]
-                stop = "none_passes"
+                stop, pending = "none_passes", None  # both steps went: nothing tentative is left to drop below
                 break
             confirmed = steps[pending[0]]
             remaining = [e for e in remaining if e.name not in confirmed.effects]
@@ -223,10 +223,14 @@ def _given_family(fitter, step: Step, by_name: dict, floor: float | None, key: s
     """A look-ahead's confirmed step with its look-alikes (:data:`.lookalike.FAMILIES`) weighed as a normal round
     weighs them, but given the effects chosen with it (``step.before``): each look-alike is refitted in its
     place, and a group is declared when the logs cannot tell them apart (:func:`.lookalike.group_of`), led by a
-    look-alike that explains more. ``step.fit`` is the model with the step's effect and the others."""
+    look-alike that explains more; a look-alike among those effects (``step.given``) is not weighed. ``step.fit`` is
+    the model with the step's effect and the others."""
     name = step.effects[0]
     family = next((f for f in FAMILIES if name in f), ())
-    rivals = [by_name[n] for n in sorted(family) if n != name and n in by_name]
+    # a look-alike chosen as one of the other steps is already in the model: refitted in this step's place it
+    # would stand in the model twice
+    taken = set(step.given or ())
+    rivals = [by_name[n] for n in sorted(family) if n != name and n in by_name and n not in taken]
     if not rivals:
         return step
     say(f"  {name}'s look-alikes in its place, given {', '.join(step.given)}: {', '.join(e.name for e in rivals)}")

@@ -289,3 +289,40 @@ def test_two_effects_that_show_only_together_are_found_by_the_look_ahead(pair_er
     assert sel.final.error("1.0") == pytest.approx(0.3) and sel.stop == "noise_floor"
     round2 = fitter.fitted[len(names):len(names) + len(names) - 1]  # after the tentative step: full fits, no screen
     assert sorted(round2) == sorted(((n,), False) for n in names if n != "flow")
+
+
+def test_a_confirmed_look_ahead_does_not_weigh_a_look_alike_already_chosen_beside_it():
+    """A latency taken tentatively and confirmed given an actuation lag: its look-alikes are weighed in its place,
+    but the lag, already in the model as the other step, is not refitted there (it would stand in it twice)."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import Step, _given_family
+
+    fitter = _Sets({(): 1.0, ("actuation_lag",): 0.8, ("actuation_lag", "sensor_latency"): 0.3})
+    by_name = {n: SimpleNamespace(name=n) for n in ("actuation_lag", "sensor_latency", "heading_lag")}
+    before = fitter._fit({"actuation_lag"})
+    both = fitter._fit({"actuation_lag", "sensor_latency"})
+    entry = fitter.entry(by_name["sensor_latency"], both, True, before)
+    step = Step(effects=["sensor_latency"], entry=entry, fit=both, before=before, given=["actuation_lag"])
+    out = _given_family(fitter, step, by_name, 0.1, "1.0", lambda msg: None)
+    assert fitter.fitted == [(("heading_lag",), False)]
+    assert out.effects == ["sensor_latency"] and out.entry["reduction"] == pytest.approx(1.0 - 0.3 / 0.8)
+
+
+def test_a_look_ahead_whose_pair_is_not_confirmed_leaves_no_step():
+    """A flow taken tentatively, a drag that passes given it, but the flow no longer earns its place once the drag
+    is in (the model refitted without the flow, from the pair's solution, does as well): both go, and the search
+    stops with the model it started from."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import Fit, rank, select
+
+    names = ("flow", "drag", "wall", "lag", "aniso")
+    fitter = _Sets({(): 1.0, ("flow",): 0.95, ("drag",): 0.97, ("flow", "drag"): 0.6})
+    fitter.without = lambda final, keep: Fit(model=SimpleNamespace(effects=frozenset(e.name for e in keep)), ev={},
+                                             summary={"rollout_mm": {"1.0": 0.62}})
+    effects = [SimpleNamespace(name=n) for n in names]
+    start = fitter._fit(())
+    first = rank(fitter, start, effects, "1.0")
+    sel = select(fitter, start, effects, first, 3, {"1.0": 0.25}, "1.0")
+    assert sel.steps == [] and sel.stop == "none_passes" and sel.final.error("1.0") == 1.0
