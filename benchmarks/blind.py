@@ -461,8 +461,8 @@ def main(argv=None) -> int:
     ap.add_argument("--draw", "--multi-draw", dest="draw", choices=("visible", "any"), default="visible",
                     help="multi and look-alike cases: redrawn until each hidden effect is visible by the "
                          "simulator's own measure (visible, the default; benchmarks/blind_visible.py), or taken "
-                         "as drawn (any: the draw of the multi runs before 26 Nov and the look-alike runs "
-                         "before 27 Nov)")
+                         "as drawn (any: the draw of the multi runs before seed 45 and the look-alike runs "
+                         "before seed 48)")
     ap.add_argument("--drift-cases", type=int, default=12,
                     help="cases of the drift group, one in three a steady control (default 12)")
     ap.add_argument("--only", choices=BASE_GROUPS,

@@ -378,7 +378,9 @@ def drift_table() -> str:
 
 SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10 (look-alikes, distance per log)"),
                  ("blind_groups_s45", "seed 45 (multi drawn visible, given discovered, sized experiment)"),
-                 ("blind_groups_s46", "seed 46 (look-ahead, heading law, invisible pairs drawn anew)"))
+                 ("blind_groups_s46", "seed 46 (look-ahead, heading law, invisible pairs drawn anew)"),
+                 ("blind_groups_s48", "seed 48 (look-alikes drawn visible, fit basins, stop-and-go and placed "
+                                      "experiments)"))
 
 
 def several_effects_table() -> str:
