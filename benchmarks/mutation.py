@@ -102,10 +102,15 @@ EQUIVALENT: dict[str, str] = {
         "localisation without clues read as None for []: both are false, 'none stand out' either way",
     'cosim_plugins.diagnose.verdict.x__clues_text__mutmut_5':
         "localisation without clues read as None (get without a default) for []: both false, the same words",
-    'cosim_plugins.diagnose.verdict.x__verdict__mutmut_72':
+    'cosim_plugins.diagnose.verdict.x__verdict__mutmut_37':
         "_steps_text called without steps too: with none chosen none is dropped, and it returns ''",
-    'cosim_plugins.diagnose.verdict.x_fit_notes__mutmut_35':
+    'cosim_plugins.diagnose.verdict.x_fit_notes__mutmut_30':
         'a missing condition number read as 1.0 for 0.0: both are far below NOTE_CONDITION (1e8)',
+    'cosim_plugins.diagnose.verdict.x__experiment_text__mutmut_9':
+        "the circle's words start as None for '': an experiment always has a path (ExperimentResult.path is "
+        "required), so they are set before use",
+    'cosim_plugins.diagnose.verdict.x__experiment_text__mutmut_10':
+        "the circle's words start as 'XXXX' for '': an experiment always has a path, so they are set before use",
     # convert.py
     'cosim_plugins.identify.convert.x_read_positions__mutmut_46':
         'pixel_mm < 0 for <= 0: a zero pixel size is refused by `not pixel_mm` just before',

@@ -228,6 +228,42 @@ def test_a_tie_points_to_the_experiment_designed_for_its_members():
     assert "record logs where their predictions differ (faster spin-rate changes)" in text
 
 
+def test_an_effect_that_shows_only_with_another_says_so_given_it():
+    """The look-ahead's pair: the first effect gained 6 % alone and is named given its partner (``given``), the
+    partner given it; the sentence says so, with the figures alone and together."""
+    first = {**step("background_flow", 1.0, 0.5, t=5.0), "given": ["quadratic_drag"],
+             "alone": {"effect": "background_flow", "rollout_mm": 0.94, "reduction": 0.06, "t_stat": 1.4,
+                       "identifiable": True}}
+    second = {**step("quadratic_drag", 0.5, 0.3, t=7.0), "given": ["background_flow"]}
+    v = verdict(result(1.0, 0.2, steps=[first, second], joint_left=0.3), K)
+    assert v["effects"] == ["background_flow", "quadratic_drag"]
+    assert v["explanation"].startswith(
+        "background_flow explains part of the error only together with quadratic_drag: alone it lowers it by 6% "
+        "(t = 1.4), not enough, but refitted with it, the held-out error at 1.0 s falls from 1.00 to 0.50 mm given "
+        "quadratic_drag (50%; t = 5.0; 62% of the excess over the noise floor, 0.20 mm). Fitted: "
+        "k = 2.00 ± 0.10 mm/s. quadratic_drag explains part of the error: refitted with it, the "
+        "held-out error at 1.0 s falls from 0.50 to 0.30 mm given background_flow (40%; "), v["explanation"]
+    pair = {**first, "given": ["quadratic_drag", "wall_drag"]}  # given two: both named
+    text = verdict(result(1.0, 0.2, steps=[pair, second], joint_left=0.3), K)["explanation"]
+    assert text.startswith("background_flow explains part of the error only together with quadratic_drag and "
+                           "wall_drag: alone"), text
+    lone = {**first, "alone": None}  # a step without a look-ahead reads as any other, given what it names
+    text = verdict(result(1.0, 0.2, steps=[lone, second], joint_left=0.3), K)["explanation"]
+    assert text.startswith("background_flow explains part of the error: refitted with it, the held-out error at "
+                           "1.0 s falls from 1.00 to 0.50 mm given quadratic_drag (50%"), text
+
+
+def test_an_experiment_without_its_circle_is_still_pointed_to():
+    """A diagnosis.json whose experiment holds no circle (written before the path was kept): the words leave the
+    circle out."""
+    exp = {"members": ["actuation_lag", "sensor_latency"], "duration_s": 40.0, "kind": "spin-rate steps",
+           "separation_mm": 0.8, "separation_over_floor": 2.0,
+           "files": {"scenario": "exp.yaml", "excitation": "exp.csv"}}
+    tie = step("actuation_lag", 1.0, 0.45, group=["sensor_latency"], evidence=RIVAL)
+    text = verdict(result(1.0, 0.4, steps=[tie], joint_left=0.45, experiment=exp), K)["explanation"]
+    assert "apply exp.csv as the spin-rate schedule on the rig: 40 s of spin-rate steps), on which" in text, text
+
+
 # --- a discovered form: cuts the error by >= 10 %, t >= 3, and to <= 70 % of what the named effects leave --------
 
 def found(after, reduction=0.4, t=5.0):
