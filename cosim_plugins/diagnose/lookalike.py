@@ -16,7 +16,12 @@ t >= :data:`~cosim_plugins.diagnose.verdict.MIN_T`):
   in the logs separates them beyond the camera's noise), they are
   look-alikes. The distance is taken log by log: a designed experiment is
   the one log where the members differ, and pooled with the logs where they
-  do not, its separation would be diluted by the archive's size.
+  do not, its separation would be diluted by the archive's size. A log
+  longer than :data:`SEPARATION_LOG_S` counts its distance times the square
+  root of its length over that: a paired test's t grows with the windows it
+  averages, the rule :func:`.experiment.sized_duration` sizes a designed
+  experiment by, so a long experiment separates members its short logs
+  could not.
 
 Typical groups: an actuation lag, a camera latency and a heading lag on logs
 whose spin rate changes slowly; a quadratic drag and a slower velocity
@@ -35,6 +40,7 @@ from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T
 FAMILIES = (frozenset({"actuation_lag", "sensor_latency", "heading_lag"}),)
 SAME_PREDICTION = 0.5  # predictions this share of the noise floor apart (or closer) cannot be told apart
 MIN_LOG_WINDOWS = 20  # a log's distance between two predictions counts with at least this many held-out windows
+SEPARATION_LOG_S = 40.0  # a log this long [s] (or shorter) counts its distance as it is; a longer one gains sqrt(s/40)
 
 
 def group_of(fitter, best: dict, entries: list, fits: dict, floor: float | None, key: str):
@@ -58,7 +64,7 @@ def group_of(fitter, best: dict, entries: list, fits: dict, floor: float | None,
             continue
         ev = evidence_of(fitter, fits[lead], fits[name], key)
         if ((ev["t_stat"] < MIN_T and abs(ev["t_horizons"]) < MIN_T)
-                or (floor is not None and ev["differ_log_mm"] < SAME_PREDICTION * floor)):
+                or (floor is not None and ev["differ_weighted_mm"] < SAME_PREDICTION * floor)):
             members.append(name)
             evidence[name] = ev
     return members, evidence
@@ -67,13 +73,19 @@ def group_of(fitter, best: dict, entries: list, fits: dict, floor: float | None,
 def evidence_of(fitter, lead, rival, key: str) -> dict:
     """How far the data tell ``lead`` from ``rival`` (two Fits): paired t at ``key`` and over every horizon
     (positive: the lead is better), how far their predictions are apart [mm] over all held-out windows
-    (``differ_mm``) and on the log where they are furthest apart (``differ_log_mm``)."""
-    logs = fitter.tte.log[fitter.test_starts]
-    per_log = [predictions_apart(lead.ev, rival.ev, logs == k) for k in np.unique(logs)
-               if np.sum(logs == k) >= MIN_LOG_WINDOWS]
+    (``differ_mm``) and on the log that separates them most (``differ_log_mm``; ``differ_weighted_mm`` is that
+    distance times sqrt(the log's length / :data:`SEPARATION_LOG_S`), at least 1x, which ranks the logs)."""
+    tl = fitter.tte
+    logs = tl.log[fitter.test_starts]
+    per_log = []  # (weighted, raw) distance of each log with enough windows
+    for k in np.unique(logs):
+        if np.sum(logs == k) >= MIN_LOG_WINDOWS:
+            raw = predictions_apart(lead.ev, rival.ev, logs == k)
+            per_log.append((raw * np.sqrt(max(1.0, np.sum(tl.log == k) * tl.dt_s / SEPARATION_LOG_S)), raw))
     pooled = predictions_apart(lead.ev, rival.ev)
+    weighted, raw = max(per_log, default=(pooled, pooled))
     return {"t_stat": fitter.paired_t(rival.ev[key], lead.ev[key]), "t_horizons": fitter.paired_t_horizons(rival, lead),
-            "differ_mm": pooled, "differ_log_mm": max(per_log, default=pooled)}
+            "differ_mm": pooled, "differ_log_mm": raw, "differ_weighted_mm": weighted}
 
 
 def predictions_apart(a: dict, b: dict, among: np.ndarray | None = None) -> float:

@@ -161,13 +161,15 @@ class RoundEntry:
 class GroupEvidence:
     """How far the logs tell a group's leader from a rival (:mod:`.lookalike`): paired t at the reference
     horizon and over every horizon (positive: the leader is better), their predictions' mean distance [mm] over
-    all held-out windows and on the log where they differ most, and what the rival ``adds`` (reduction, with
-    its t ``adds_t``) once refitted together with the leader."""
+    all held-out windows and on the log that separates them most (``differ_weighted_mm``: that distance weighted
+    by the log's length, see :func:`.lookalike.evidence_of`), and what the rival ``adds`` (reduction, with its t
+    ``adds_t``) once refitted together with the leader."""
 
     t_stat: float
     t_horizons: float
     differ_mm: float
     differ_log_mm: float | None = _optional()
+    differ_weighted_mm: float | None = _optional()
     adds: float | None = _optional()
     adds_t: float | None = _optional()
 

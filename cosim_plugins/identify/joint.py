@@ -55,7 +55,13 @@ EE_WINDOWS = 200  # training windows the equation-error starts use
 EE_NFEV = 15  # evaluations of each equation-error fit
 DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank) [mm]
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
-RIDGE = np.diag([1e-6] * 3 + [1e-8] * 3)
+# the initial-state solve's ridge [mm^2 per mm^2, mm^2 per (mm/s)^2]: it keeps the correction of the guess finite
+# where the windows do not see a direction. The velocity's is worth about one measurement row per 10 mm/s: a
+# velocity response faster than a control period forgets the initial velocity within a row, and a rollout that
+# starts rows before its window (a latency's lookback) leaves it to the position alone; unbounded, the solve then
+# chose velocities of ~100 mm/s off the guess, a nonlinear transient that changed the error by ~10 % each time a
+# latency's lookback crossed a whole period (the fit stalled at whole periods)
+RIDGE = np.diag([1e-6] * 3 + [1e-4] * 3)
 POLISH_NFEV = 8  # evaluations of the open-loop polish
 BASIN_SCALES = 2.0  # a start this far from the polished solution (effect parameters, in typical scales) is polished too
 MAX_BATCH_COLUMNS = 4096  # batch columns a rollout steps at once (wider ones miss the caches: slower)
@@ -344,7 +350,7 @@ class JointModel:
             q0 = self.trajectories(tl, starts, length, held.x0[None], u_eff)[0]
             Su = held.Su if held.use is not None and np.array_equal(held.use, use) else None
             return _corrected(q0, held.S, use, tz, held.G, Su)[0], held
-        x0 = tl.x_lin[np.maximum(starts - m, tl.segment_start[starts])]  # the guess where the rollouts start
+        x0 = lookback_guess(tl, starts, m)  # the guess where the rollouts start
         xs = np.stack([x0] + [x0 + DV * np.eye(6)[3 + a] for a in range(3)])
         q = self.trajectories(tl, starts, length, xs, u_eff)
         S = np.zeros(q.shape[1:3] + (3, 6))
@@ -409,6 +415,23 @@ class JointModel:
             last = (tl, starts, length, fit_rows, target, use, np.where(use[..., None], target, 0.0), tl.p)
             self._fitted_rows = last
         return last[4:7]
+
+
+def lookback_guess(tl, starts: np.ndarray, m: int) -> np.ndarray:
+    """(w, 6) the guess of the state [mm, mm/s] at the row each rollout starts from, ``m`` rows before the windows
+    at ``starts`` (w,) (at most back to the segment's first row).
+
+    A lookback belongs to a sensor effect that reports earlier positions (a latency, see
+    :mod:`cosim_plugins.identify.effect`): what the camera shows at a window's first row is where the swimmer was
+    about ``m`` rows before it, so that row's state estimate is the guess. The state logged ``m`` rows earlier is
+    where it was about ``2 m`` rows before: a start that far off the path needs a correction beyond the linearised
+    initial-state solve, and a model with a larger latency would be judged on a worse start than one without.
+    Where the segment's start clips the rollout, the state shown ``m`` rows after its first row is the guess.
+    """
+    if m == 0:
+        return tl.x_lin[starts]
+    r0 = np.maximum(starts - m, tl.segment_start[starts])
+    return tl.x_lin[np.minimum(r0 + m, tl.n - 1)]
 
 
 def _corrected(q0, S, use, tz, G=None, Su=None):

@@ -57,7 +57,7 @@ def test_lag_and_latency_are_declared_a_group_not_a_name(late_camera):
     assert step["group"] and step["reduction"] >= 0.10 and step["t_stat"] >= 3.0
     rival = step["group_evidence"][step["effects"][1]]
     told_apart = rival["t_stat"] >= 3.0 or abs(rival["t_horizons"]) >= 3.0
-    assert not told_apart or rival["differ_log_mm"] < 0.5 * r["noise_floor_mm"]  # not told apart, or nearly alike
+    assert not told_apart or rival["differ_weighted_mm"] < 0.5 * r["noise_floor_mm"]  # not told apart, or alike
     assert rival["adds"] < 0.10  # and it adds nothing to the other
     assert "None of them is named" in v["explanation"] and "experiment.yaml" in v["explanation"]
 

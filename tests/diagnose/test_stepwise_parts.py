@@ -47,7 +47,8 @@ def test_predictions_apart_cancels_the_measurement():
 
 def test_look_alikes_are_told_apart_by_the_log_where_their_predictions_differ():
     """Four logs where two members predict alike and one (an experiment) where they differ by 0.4 mm: pooled, the
-    distance is 0.08 mm, under half a 0.2 mm floor; log by log it is the experiment's 0.4 mm."""
+    distance is 0.08 mm, under half a 0.2 mm floor; log by log it is the experiment's 0.4 mm. Made 160 s long (four
+    times the 40 s a distance counts as it is over), the experiment's 0.4 mm weigh twice as much."""
     from types import SimpleNamespace
 
     from cosim_plugins.diagnose.lookalike import evidence_of
@@ -56,10 +57,14 @@ def test_look_alikes_are_told_apart_by_the_log_where_their_predictions_differ():
     apart = np.where(logs == 4, 0.4, 0.0)[:, None] * [1.0, 0.0, 0.0]
     ev = {KEY: {"valid": np.ones(200, bool), "err": np.zeros((200, 3))}}
     lead, rival = SimpleNamespace(ev=ev), SimpleNamespace(ev={KEY: {"valid": ev[KEY]["valid"], "err": apart}})
-    fitter = SimpleNamespace(tte=SimpleNamespace(log=logs), test_starts=np.arange(200),
-                             paired_t=lambda a, b: 0.0, paired_t_horizons=lambda a, b: 0.0)
+    tl = SimpleNamespace(log=logs, dt_s=0.25)  # 40 rows: each log 10 s long
+    fitter = SimpleNamespace(tte=tl, test_starts=np.arange(200), paired_t=lambda a, b: 0.0,
+                             paired_t_horizons=lambda a, b: 0.0)
     out = evidence_of(fitter, lead, rival, KEY)
     assert out["differ_mm"] == pytest.approx(0.08) and out["differ_log_mm"] == pytest.approx(0.4)
+    assert out["differ_weighted_mm"] == pytest.approx(0.4)  # shorter than 40 s: as it is
+    tl.log = np.concatenate([logs, np.full(600, 4)])  # the experiment's log 160 s long, its windows the same
+    assert evidence_of(fitter, lead, rival, KEY)["differ_weighted_mm"] == pytest.approx(0.8)
 
 
 def test_excitations_stay_in_the_band():
