@@ -32,6 +32,10 @@ it finishes; at the end one JSON object is printed:
   hidden library effect), ``extra_named`` (cases naming a library effect not
   hidden); ``all_named_detectable`` the same over the ``detectable`` cases
   (each hidden library effect's true form alone lowers the error by >= 10 %);
+  ``detectable_jointly`` and ``all_named_detectable_jointly`` the same where
+  each hidden library effect's true form lowers the error by >= 10 % once
+  the other hidden effects' true forms are in (``true_given_others`` in the
+  records: an effect a larger one masks alone can still show beside it);
   ``visible_named``: fraction naming every hidden library effect that its true
   form alone shows (>= 10 %); ``drawn_visible`` (cases whose every hidden
   effect is visible by the simulator's own measure, ``benchmarks/blind_visible.py``:
@@ -45,7 +49,8 @@ it finishes; at the end one JSON object is printed:
   counts the extra names after it);
   ``by_kind``: the same for two library effects (``library``) and a
   library and an outside one (``outside``). Each hidden effect with a true
-  form is refitted alone: ``true_reductions`` in the records;
+  form is refitted alone (``true_reductions`` in the records), and all of
+  them together;
 * ``lookalike``: ``cases``; ``wrong_named`` (cases naming an effect not
   hidden while the hidden one is in no declared look-alike group);
   ``visible`` (cases whose hidden effect the simulator's own measure shows,
@@ -166,16 +171,34 @@ def _diagnose(logs) -> tuple[dict, object]:
     return fields, d
 
 
-def _true_refit(logs, source: str, name: str, path: Path) -> tuple[float, dict]:
-    """(held-out reduction at the reference horizon, fitted params) of the model plus one true form."""
+def _true_refit(logs, forms: list) -> tuple[float, dict]:
+    """(held-out reduction at the reference horizon, fitted params) of the model plus the true forms ``forms``
+    [(effect-file source, effect name, path to write it to)], fitted jointly."""
     from cosim.contract import plugins
     from cosim_plugins.diagnose.pipeline import Settings, run
 
-    path.write_text(source)
+    for source, _, path in forms:
+        path.write_text(source)
     plugins.reset()
-    true = run(logs, settings=Settings(effects_files=[str(path)], add=[name], candidates=[])).json
+    true = run(logs, settings=Settings(effects_files=[str(p) for _, _, p in forms], add=[n for _, n, _ in forms],
+                                       candidates=[])).json
     key = next(k for k, v in true["horizons_s"].items() if v == true["reference_horizon_s"])
     return true["added"]["reduction"][key], {k: v["value"] for k, v in true["added"]["params"].items()}
+
+
+def _given_others(logs, forms: dict, alone: dict) -> dict:
+    """{effect: the drop of held-out error its true form brings once the other hidden effects' true forms are in}:
+    1 - (1 - r_all) / (1 - r_others), r_all the reduction with every true form of ``forms`` {effect: (source,
+    name, path)} fitted together, r_others with all but that one (``alone`` {effect: reduction} when one other)."""
+    if len(forms) < 2:
+        return dict(alone)
+    r_all = _true_refit(logs, list(forms.values()))[0]
+    out = {}
+    for effect in forms:
+        others = [e for e in forms if e != effect]
+        r_others = alone[others[0]] if len(others) == 1 else _true_refit(logs, [forms[e] for e in others])[0]
+        out[effect] = 1.0 - (1.0 - r_all) / max(1.0 - r_others, 1e-9)
+    return out
 
 
 def run_case(case: blind_sim.Case, out: Path, draw_mode: str = "visible") -> dict:
@@ -200,14 +223,16 @@ def run_case(case: blind_sim.Case, out: Path, draw_mode: str = "visible") -> dic
         record.update(effects=case.effects, laws=case.laws, truths=case.truths,
                       hidden_library=[e for e in case.effects if e in blind_sim.LIBRARY],
                       true_reductions={}, true_params={})
-        for effect, source, name in zip(case.effects, case.true_forms, case.true_form_names):
-            if source:
-                red, prm = _true_refit(logs, source, name, folder / f"true_form_{effect}.py")
-                record["true_reductions"][effect], record["true_params"][effect] = red, prm
+        forms = {e: (source, name, folder / f"true_form_{e}.py")
+                 for e, source, name in zip(case.effects, case.true_forms, case.true_form_names) if source}
+        for effect, form in forms.items():
+            red, prm = _true_refit(logs, [form])
+            record["true_reductions"][effect], record["true_params"][effect] = red, prm
+        record["true_given_others"] = _given_others(logs, forms, record["true_reductions"])
         record["after"] = _multi_experiment(case, folder, logs, record, d)
     elif case.true_form:
-        record["true_reduction"], record["true_params"] = _true_refit(logs, case.true_form, case.true_form_name,
-                                                                      folder / "true_form.py")
+        record["true_reduction"], record["true_params"] = _true_refit(
+            logs, [(case.true_form, case.true_form_name, folder / "true_form.py")])
     if case.group == "lookalike":
         record.update(_lookalike_round(case, folder, logs, fields, d))
         record["visibility"] = draw["visibility"] if draw else blind_visible.visibility(case)
@@ -339,6 +364,10 @@ def summarise(records: list[dict]) -> dict:
         true = r.get("true_reductions") or {}
         return all((true.get(e) or 0.0) >= DETECTABLE for e in r["hidden_library"])
 
+    def jointly_detectable(r):  # ... by >= 10 % once the other hidden effects' true forms are in
+        given = r.get("true_given_others")
+        return given is not None and all((given.get(e) or 0.0) >= DETECTABLE for e in r["hidden_library"])
+
     def extra_named(r):  # a library effect named that is not hidden
         return any(e in blind_sim.LIBRARY and e not in r["effects"] for e in r["named_effects"])
 
@@ -394,6 +423,8 @@ def summarise(records: list[dict]) -> dict:
                   "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind,
                   "detectable": sum(1 for r in multi if multi_detectable(r)),
                   "all_named_detectable": frac([r for r in multi if multi_detectable(r)], all_named),
+                  "detectable_jointly": sum(1 for r in multi if jointly_detectable(r)),
+                  "all_named_detectable_jointly": frac([r for r in multi if jointly_detectable(r)], all_named),
                   "visible_named": frac(multi, visible_named),
                   "drawn_visible": sum(1 for r in multi if multi_visible(r)),
                   "all_named_drawn_visible": frac([r for r in multi if multi_visible(r)], all_named),

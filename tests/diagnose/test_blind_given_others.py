@@ -1,0 +1,36 @@
+"""The blind bench's joint detectability: an effect masked alone by a larger one still counts once the other is in."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import blind  # noqa: E402
+
+
+def test_drop_given_the_others_is_what_the_last_form_adds(monkeypatch):
+    """Alone, a wall drag lowers the error by 60 % and a latency by 2 %; together by 70 %: given the wall drag, the
+    latency takes 1 - 0.30 / 0.40 = 25 % of what remains, and the wall drag 1 - 0.30 / 0.98 of it."""
+    forms = {"wall_drag": ("src", "true_wall_drag", Path("a.py")),
+             "sensor_latency": ("src", "true_sensor_latency", Path("b.py"))}
+    monkeypatch.setattr(blind, "_true_refit", lambda logs, fs: (0.70, {}) if len(fs) == 2 else pytest.fail("refit"))
+    given = blind._given_others([], forms, {"wall_drag": 0.60, "sensor_latency": 0.02})
+    assert given["sensor_latency"] == pytest.approx(0.25)
+    assert given["wall_drag"] == pytest.approx(1 - 0.30 / 0.98)
+
+
+def test_jointly_detectable_cases_are_scored_apart():
+    base = {"group": "multi", "effects": ["wall_drag", "sensor_latency"], "laws": ["exp", ""],
+            "hidden_library": ["wall_drag", "sensor_latency"], "lookalikes": [], "seconds": 1.0, "after": None,
+            "true_reductions": {"wall_drag": 0.6, "sensor_latency": 0.02}, "draw": {"all_visible": True}}
+    masked = {**base, "named_effects": ["wall_drag"], "true_given_others": {"wall_drag": 0.7, "sensor_latency": 0.05}}
+    shown = {**base, "named_effects": ["wall_drag"], "true_given_others": {"wall_drag": 0.7, "sensor_latency": 0.25}}
+    found = {**shown, "named_effects": ["wall_drag", "sensor_latency"]}
+    m = blind.summarise([masked, shown, found])["multi"]
+    assert m["detectable"] == 0 and m["detectable_jointly"] == 2  # alone, the latency's 2 % never counts
+    assert m["all_named"] == pytest.approx(1 / 3, abs=1e-3) and m["all_named_detectable_jointly"] == pytest.approx(0.5)
