@@ -24,6 +24,7 @@ QUICK_STRIDE = 2  # ... on every second training window (its drop is a screen: t
 # same speed per Hz, another time constant). On 0.5 s windows with a free initial velocity the time constant of a
 # slow swimmer is barely determined, and a fit from the quick start alone can end several times too fast.
 TAU_STARTS_S = (0.03, 0.1, 0.3, 1.0)
+TAU_RANGE_S = (0.005, 5.0)  # velocity time constants a non-degenerate fit can have [s]
 
 if TYPE_CHECKING:
     from cosim_plugins.diagnose.pipeline import Settings
@@ -224,8 +225,11 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: "Settings", 
     host0 = _host_init(base_host)
     # the effects' own starts held while the host adapts
     fresh_starts = [host0] + [{**host0, **st} for st in extra] if fresh else []
+    # from a degenerate reference even the equation-error fits settle in its corner (no drag, no thrust): the
+    # host's initial parameters with each effect's start, refined on the windows as they are, can leave it
+    free_starts = [{**host0, **st} for st in extra] if fresh and degenerate(ref) else []
     res = fit_joint(jm, ttr, starts, length, max_nfev=s.max_nfev, extra_starts=extra, fresh_starts=fresh_starts,
-                    progress=say, score=score, polish=polish)
+                    free_starts=free_starts, progress=say, score=score, polish=polish)
     own = [q for e in effects for q in e.param_names()]
     units = {q.name: q.unit for q in jm.param_list}
     std = {n: (float(res.std[n]) if np.isfinite(res.std[n]) else None) for n in own}
@@ -235,6 +239,14 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: "Settings", 
                    fit={"rms_mm": res.rms_mm, "evaluations": res.evaluations, "status": res.status,
                         "start": res.start},
                    identifiable=not all(n in unseen or std[n] is None for n in own))
+
+
+def degenerate(jm: JointModel) -> bool:
+    """True when the physical host's fit has no usable drag: Cd1 at its bound, or a velocity time constant
+    outside :data:`TAU_RANGE_S` (always False for hosts without a drag parameter)."""
+    tau = velocity_time_constant(jm)
+    return tau is not None and ("Cd1" in (jm.conditioning or {}).get("at_bound", ())
+                                or not TAU_RANGE_S[0] <= tau <= TAU_RANGE_S[1])
 
 
 def velocity_time_constant(jm: JointModel) -> float | None:

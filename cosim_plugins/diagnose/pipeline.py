@@ -40,7 +40,7 @@ from threadpoolctl import threadpool_limits
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose import drift
 from cosim_plugins.diagnose.experiment import Experiment, design_experiment
-from cosim_plugins.diagnose.fitting import Fitter, bar, fit_model, reduction_of, velocity_time_constant
+from cosim_plugins.diagnose.fitting import Fitter, bar, degenerate, fit_model, reduction_of, velocity_time_constant
 from cosim_plugins.diagnose.localise import localise, window_features
 from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
 from cosim_plugins.diagnose.result import (
@@ -96,7 +96,6 @@ DISCOVER_WINDOWS = 400  # training windows of the discovery's regression (anothe
 EFFECT_MODEL = "physical"
 DISCOVERED_FILE = "discovered_effect.py"
 DISCOVER_ABOVE_FLOOR = 1.5  # a named effect leaving more than this x the floor: discovery runs too
-TAU_RANGE_S = (0.005, 5.0)  # velocity time constants a non-degenerate fit can have
 TAU_DEFAULT_S = 0.2  # for the noise floor when no fit gives one
 
 
@@ -488,8 +487,7 @@ def _floor_time_constant(models) -> tuple[float, str]:
     taus = []
     for jm in models:
         tau = velocity_time_constant(jm)
-        if tau is not None and TAU_RANGE_S[0] <= tau <= TAU_RANGE_S[1] and "Cd1" not in jm.conditioning.get(
-                "at_bound", ()):
+        if tau is not None and not degenerate(jm):
             taus.append(tau)
     if not taus:
         return TAU_DEFAULT_S, f"no fit gives a usable drag: {TAU_DEFAULT_S} s assumed"
