@@ -194,6 +194,9 @@ QUADRATIC_DRAG = Effect(
     force=_quadratic_drag,
     doc="Form drag at Reynolds numbers of 25-300: -c |v| v with c = rho Cd A / 2 [uN s^2/mm^2] "
         "(water, Cd ~ 1, A ~ 5-15 mm^2 gives 2.5e-3-7.5e-3), on top of the model's linear drag.",
+    # from c = 0, at its bound, a fit whose linear drag already took the slowing stays there: starts spread over
+    # the form-drag range (x4 apart), each held while the model's drag adapts to it
+    starts=({"c": 1e-3}, {"c": 4e-3}, {"c": 1.6e-2}),
 )
 
 FORCE_EFFECTS = (BACKGROUND_FLOW, WALL_DRAG, STEP_OUT, GRADIENT_FORCE, ANISOTROPIC_DRAG, QUADRATIC_DRAG)

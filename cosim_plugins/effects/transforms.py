@@ -131,12 +131,12 @@ def _latency_lookback(prm) -> int:
 SENSOR_LATENCY = Effect(
     name="sensor_latency",
     kind="sensor",
-    params=(EffectParam("delay", 0.0, 0.0, 10.0, "steps", 0.5),),
+    params=(EffectParam("delay", 0.0, 0.0, 25.0, "steps", 0.5),),  # 25: 0.5 s at 50 Hz, 0.25 s at 100 Hz
     transform=_sensor_latency,
     doc="Camera latency (exposure, transfer, image processing): the position logged at t_i is where the "
         "swimmer was at t_i - delay dt; delay [control periods] is fitted as a fraction or a number of "
         "steps, by linear interpolation along the predicted path.",
-    starts=({"delay": 0.5}, {"delay": 1.5}, {"delay": 4.0}),
+    starts=({"delay": 0.5}, {"delay": 1.5}, {"delay": 4.0}, {"delay": 10.0}),
     lookback=_latency_lookback,
 )
 
