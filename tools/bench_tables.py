@@ -288,7 +288,7 @@ ROWS = (
     Row("blind.py", "`cosim diagnose` on logs of an independent simulator, 60 random cases "
         "(see [How diagnose is validated](diagnose/validation.md))",
         "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75",
-        ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49"), _blind),
+        ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56"), _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
     Row("hosts_loop.py", "the racetrack loop over mutual TLS between two loopback addresses (a run over two "
@@ -380,7 +380,10 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s45", "seed 45 (multi drawn visible, given discovered, sized experiment)"),
                  ("blind_groups_s46", "seed 46 (look-ahead, heading law, invisible pairs drawn anew)"),
                  ("blind_groups_s48", "seed 48 (look-alikes drawn visible, fit basins, stop-and-go and placed "
-                                      "experiments)"))
+                                      "experiments)"),
+                 ("blind_groups_s51", "seed 51 (a latency's start, a long log's separation)"),
+                 ("blind_groups_s53", "seed 53 (starts off a degenerate baseline)"),
+                 ("blind_groups_s55", "seed 55 (quadratic drag's starts, latency to 25 steps)"))
 
 
 def several_effects_table() -> str:
@@ -406,6 +409,10 @@ def several_effects_table() -> str:
          "shows (drawn so from seed 45 on)",
          *multi(lambda m: of(m["all_named_drawn_visible"], m["drawn_visible"])
                 if m.get("drawn_visible") else "-"), ""],
+        ["`multi.all_named_detectable_jointly`: the same over the cases where each hidden library effect's true form "
+         "lowers the error by >= 10 % once the other's is in (from seed 51 on)",
+         *multi(lambda m: of(m["all_named_detectable_jointly"], m["detectable_jointly"])
+                if m.get("detectable_jointly") else "-"), ""],
         ["`multi.extra_named`: a library effect named that is not hidden",
          *multi(lambda m: str(m["extra_named"])), "<= 1"],
         ["`multi.all_named_after_experiment`: the same at once or once a declared group's designed experiment is "
