@@ -170,7 +170,7 @@ def _coef_unit(t: Term) -> str:
 # ---------------------------------------------------------------- the regression
 
 
-def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1) -> dict:
+def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, exclude=()) -> dict:
     """Sparse residual-force regression on top of ``reference`` (a fitted JointModel).
 
     ``train`` and ``test`` are :class:`~cosim_plugins.identify.joint.OpenLoop` windows of the training and
@@ -180,7 +180,7 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1) 
     on the held-out data (the diagnosis's own refit). Returns a dict with ``status`` ("found",
     "none", "too_short"), ``explanation`` (a sentence), and when found ``terms``, ``params``,
     ``words``, ``source`` (the effect file) and the refit's ``fitted``/``summary``/``ev``. The sensitivities'
-    columns are shared among ``jobs`` forked processes.
+    columns are shared among ``jobs`` forked processes. ``exclude``: names of terms the form may not use.
     """
     from cosim_plugins.identify.joint import JointModel, OpenLoop
 
@@ -209,7 +209,7 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1) 
     Jp = J_tr - Q @ (Q.T @ J_tr)
     rp = r_tr - Q @ (Q.T @ r_tr)
     norms = np.linalg.norm(Jp, axis=0)
-    keep = norms > 1e-6 * max(norms.max(), 1e-300)
+    keep = (norms > 1e-6 * max(norms.max(), 1e-300)) & np.array([t.name not in exclude for t in TERMS])
     cols = np.flatnonzero(keep)
     steps = list(forward_selection(Jp[:, cols], rp, MAX_TERMS))
     # the held-out windows need the sensitivities of the terms on the path only (each step adds one)

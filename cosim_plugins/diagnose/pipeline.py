@@ -18,7 +18,8 @@ Pipeline of ``cosim diagnose`` (units mm, mm/s, Hz, s):
    the reference horizon; then choose effects stepwise, each given the ones
    before, and declare look-alike groups (:mod:`.stepwise`, :mod:`.lookalike`);
 6. discover a form outside the library in what the chosen effects leave
-   (:mod:`.discover`); design the experiment that tells a look-alike group
+   (:mod:`.discover`); drop a chosen force that only stands in for it
+   (:mod:`.standin`); design the experiment that tells a look-alike group
    apart (:mod:`.experiment`); :mod:`.verdict` names the effects (or not).
 
 What it finds is a :class:`~.result.DiagnosisResult`, built here step by step;
@@ -62,9 +63,10 @@ from cosim_plugins.diagnose.result import (
     StepResult,
     Stepwise,
 )
+from cosim_plugins.diagnose.standin import stand_ins
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
-from cosim_plugins.diagnose.verdict import discovered_explains, fit_notes, paired_t, verdict
+from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T, discovered_explains, fit_notes, paired_t, verdict
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
 from cosim_plugins.identify.joint import JointModel, OpenLoop, supports_effects
@@ -260,10 +262,25 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     result.verdict = verdict(result, s.reference)
     source = None
     if s.discover or result.verdict.status == "unexplained" or _left_above_floor(result, s.reference):
-        result.discovered, source, found_fit = _discover(final, ttr, fit_starts, fit_len, tte, test_starts, s, dt,
-                                                         fitter, say, open_train)
+        def discover_on(fit, tell=say, exclude=()):
+            return _discover(fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, tell, open_train,
+                             exclude)
+
+        result.discovered, source, found_fit = discover_on(final)
+        if found_fit is not None and selection.steps and _discovered_passes(result.discovered):
+            gone = stand_ins(fitter, selection, {e.name: e for e in candidates},
+                             lambda fit, exclude: discover_on(fit, lambda m: None, exclude), floor[s.reference],
+                             s.reference, say)
+            if gone:  # the form is discovered again on what the effects left leave
+                final = selection.final
+                _drop_stand_ins(result.stepwise, selection, gone)
+                result.fit_notes = fit_notes(result)
+                result.verdict = verdict(result, s.reference)
+                result.discovered, source, found_fit = discover_on(final)
         if found_fit is not None and discovered_explains(result, s.reference):
-            given = _given_discovered(fitter, found_fit, candidates, selection, s, floor, say)
+            stand_in = {d.effect for d in result.stepwise.dropped if d.given == "discovered"}
+            given = _given_discovered(fitter, found_fit, [e for e in candidates if e.name not in stand_in],
+                                      selection, s, floor, say)
             if given is not None:
                 result.stepwise.given_discovered = stepwise_result(given, s.reference, s.max_effects)
         result.verdict = verdict(result, s.reference)
@@ -357,6 +374,24 @@ def stepwise_result(sel: Selection, key: str, max_effects: int) -> Stepwise:
     )
 
 
+def _discovered_passes(found: Discovered) -> bool:
+    """True when the discovered form lowers what the chosen effects leave by >= MIN_REDUCTION with t >= MIN_T:
+    then a chosen force may be standing in for it (:mod:`.standin`; reporting the form asks for more,
+    :func:`.verdict.discovered_explains`)."""
+    return found.status == "found" and found.reduction >= MIN_REDUCTION and found.t_stat >= MIN_T
+
+
+def _drop_stand_ins(sw: Stepwise, selection: Selection, gone: list) -> None:
+    """The result's stepwise search without the stand-ins ``gone`` (:mod:`.standin`, already out of
+    ``selection``): its steps, its dropped effects and its joint model."""
+    names = {d.effect for d in gone}
+    sw.steps = [st for st in sw.steps if st.effects[0] not in names]
+    sw.dropped += gone
+    start, final = selection.start.summary["rollout_mm"], selection.final.summary["rollout_mm"]
+    sw.joint = Joint(effects=selection.chosen, rollout_mm=final,
+                     reduction={h: reduction_of(start[h], final[h]) for h in final})
+
+
 def _left_above_floor(result: DiagnosisResult, key: str) -> bool:
     """True when even the chosen effects leave the error well above the noise floor (something else is missing)."""
     sw, floor = result.stepwise, result.noise.floor_mm[key]
@@ -381,10 +416,10 @@ def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selecti
     return select(fitter, found, left, first, room, floor, s.reference, say)
 
 
-def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, say, train):
+def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, say, train, exclude=()):
     """(the result's ``discovered``, effect file source or None, the final model refitted with the discovered form
     (a Fit) or None): the sparse regression of :mod:`.discover` on what the final model (the chosen effects in)
-    leaves."""
+    leaves, without the terms named in ``exclude``."""
     from cosim_plugins.diagnose.discover import discover
 
     reference = final.model
@@ -398,7 +433,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
         return fit.fitted, fit.summary, fit.ev
 
     test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
-    found = discover(reference, ttr, tte, train, test, refit, say, jobs=s.jobs)
+    found = discover(reference, ttr, tte, train, test, refit, say, jobs=s.jobs, exclude=exclude)
     if found["status"] != "found":
         return Discovered(**found), None, None
     summ, ev = found.pop("summary"), found.pop("ev")

@@ -250,7 +250,11 @@ def _stepwise_section(r: DiagnosisResult, key: str) -> list[str]:
                   + ", ".join(f"{e.effect} {e.reduction:+.1%} (t = {e.t_stat:.1f})"
                               for e in entries if e.identifiable) + "."]
     for d in sw.dropped:
-        lines.append(f"- dropped by the backward check: {d.effect} ({d.reduction:+.1%}, t = {d.t_stat:.1f})")
+        by = {"drift": "the drift test", "discovered": "the stand-in check"}.get(d.given, "the backward check")
+        lines.append(f"- dropped by {by}: {d.effect} ({d.reduction:+.1%}, t = {d.t_stat:.1f})"
+                     + (f"; the form found without it ({', '.join(d.terms)}) lowers the error by "
+                        f"{d.form_reduction:+.1%} (t = {d.form_t_stat:.1f}) given it"
+                        if d.given == "discovered" else ""))
     exp = r.experiment
     if exp:
         lines += ["", "## The experiment that tells the look-alikes apart", "",

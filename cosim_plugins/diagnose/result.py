@@ -197,12 +197,18 @@ class StepResult:
 
 @dataclass
 class Dropped:
-    """An effect the backward check (or, ``given`` "drift", the drift test) took out again."""
+    """An effect the backward check took out again; ``given`` "drift": the drift test did, "discovered": it
+    stands in for a form outside the library (:mod:`.standin`), whose ``terms`` were found without it and lower
+    the error by ``form_reduction`` (paired t ``form_t_stat``) given it. ``reduction``, ``t_stat``: the
+    effect's drop given the others (and the drift, or the form)."""
 
     effect: str
     reduction: float
     t_stat: float
     given: str | None = _optional()
+    terms: list | None = _optional()
+    form_reduction: float | None = _optional()
+    form_t_stat: float | None = _optional()
 
 
 @dataclass

@@ -236,6 +236,12 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                      f"{result.effects_model.rollout_mm[key]:.2f} to {j.rollout_mm[key]:.2f} mm "
                      f"({j.reduction[key]:.0%}).")
     for d in sw.dropped:
+        if d.given == "discovered":
+            parts.append(f"{d.effect} was dropped: it stands in for a form outside the library. Discovered without "
+                         f"it, that form leaves {d.effect} only {d.reduction:.0%} (t = {d.t_stat:.1f}), while it "
+                         f"still lowers the error by {d.form_reduction:.0%} (t = {d.form_t_stat:.1f}) once "
+                         f"{d.effect} is in.")
+            continue
         parts.append(f"{d.effect} was dropped once "
                      + ("the drift between the logs was allowed for" if d.given == "drift" else
                         "the others were in")
