@@ -224,8 +224,7 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                          f"refitted with it, {drop}. Fitted: {params_text(st.params)}.")
             continue
         rivals = ", ".join(f"{m} (t = {ev.t_stat:.1f} at {key} s, {ev.t_horizons:.1f} over all horizons; "
-                           f"predictions {ev.differ_mm if ev.differ_log_mm is None else ev.differ_log_mm:.2f} mm "
-                           f"apart on the log where they differ most; refitted together it adds {ev.adds:+.0%})"
+                           f"predictions {_apart_text(ev)}; refitted together it adds {ev.adds:+.0%})"
                            for m, ev in st.group_evidence.items())
         parts.append(f"{' or '.join(st.effects)} explain the error about equally well: refitted with "
                      f"{st.effects[0]}, {drop}, and these logs cannot tell it from {rivals}. None of them is "
@@ -249,15 +248,27 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
     return " ".join(parts)
 
 
+def _apart_text(ev) -> str:
+    """How far apart a group's members predict, in words: on the log where they differ most, with the distance
+    its length makes it count for (:data:`.lookalike.SEPARATION_LOG_S`) when that is larger."""
+    if ev.differ_log_mm is None:
+        return f"{ev.differ_mm:.2f} mm apart"
+    text = f"{ev.differ_log_mm:.2f} mm apart on the log where they differ most"
+    if ev.differ_weighted_mm is not None and ev.differ_weighted_mm > ev.differ_log_mm + 0.005:
+        text += f", counted as {ev.differ_weighted_mm:.2f} mm for its length"
+    return text
+
+
 def _experiment_text(result: DiagnosisResult, members: list) -> str:
     exp = result.experiment
     if not exp or set(exp.members) != set(members):
         return "record logs where their predictions differ (faster spin-rate changes) and diagnose again."
     where = ""
-    if exp.path is not None:  # the circle matters: an effect of the position differs only where it acts
-        c = exp.path.center_mm
-        where = (f" on a circle of {exp.path.radius_mm:.0f} mm about ({c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}) mm"
-                 if len(c) == 3 else "")
+    # the circle matters (an effect of the position differs only where it acts); a diagnosis.json written before
+    # the circle was kept has none
+    if exp.path is not None and exp.path.center_mm:
+        x, y, z = exp.path.center_mm
+        where = f" on a circle of {exp.path.radius_mm:.0f} mm about ({x:.0f}, {y:.0f}, {z:.0f}) mm"
     return (f"record the experiment designed to tell them apart ({exp.files.scenario}, or apply "
             f"{exp.files.excitation} as the spin-rate schedule on the rig{where}: {exp.duration_s:.0f} s of "
             f"{exp.kind}), on which their predictions differ by {exp.separation_mm:.2f} mm "

@@ -218,7 +218,12 @@ def test_a_tie_points_to_the_experiment_designed_for_its_members():
     rival = {"sensor_latency": {k: v for k, v in RIVAL["sensor_latency"].items() if k != "differ_log_mm"}}
     tie = step("actuation_lag", 1.0, 0.45, group=["sensor_latency"], evidence=rival)
     text = verdict(result(1.0, 0.4, steps=[tie], joint_left=0.45, experiment=exp), K)["explanation"]
-    assert ("predictions 0.05 mm apart on the log where they differ most" in text)  # pooled when no per-log figure
+    assert "predictions 0.05 mm apart; refitted" in text  # pooled when no per-log figure
+    long_log = {"sensor_latency": {**RIVAL["sensor_latency"], "differ_weighted_mm": 0.18}}
+    tie = step("actuation_lag", 1.0, 0.45, group=["sensor_latency"], evidence=long_log)
+    text = verdict(result(1.0, 0.4, steps=[tie], joint_left=0.45, experiment=exp), K)["explanation"]
+    assert ("predictions 0.09 mm apart on the log where they differ most, counted as 0.18 mm for its length; "
+            "refitted") in text  # the distance the look-alike test weighed
     assert ("None of them is named: record the experiment designed to tell them apart (exp.yaml, or apply exp.csv "
             "as the spin-rate schedule on the rig on a circle of 20 mm about (-26, 25, -4) mm: 60 s of spin-rate "
             "steps), on which their predictions differ by "
