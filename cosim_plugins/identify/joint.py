@@ -446,7 +446,16 @@ def _corrected(q0, S, use, tz, G=None, Su=None):
     SuT = Su.transpose(0, 2, 1)
     if G is None:
         G = SuT @ Su + RIDGE
-    d = np.linalg.solve(G, -(SuT @ r.reshape(w, rows * 3, 1)))[..., 0]
+    rhs = -(SuT @ r.reshape(w, rows * 3, 1))
+    try:
+        d = np.linalg.solve(G, rhs)[..., 0]
+    except np.linalg.LinAlgError:  # a window whose rollout blew up (its normal matrix singular) gets no step
+        d = np.zeros((w, 6))
+        for i in range(w):
+            try:
+                d[i] = np.linalg.solve(G[i], rhs[i])[:, 0]
+            except np.linalg.LinAlgError:
+                pass
     return q0 + (S.reshape(w, rows * 3, 6) @ d[..., None]).reshape(q0.shape), d, G, Su
 
 

@@ -217,3 +217,20 @@ def test_a_wide_rollout_stepped_in_pieces_is_the_same(timeline, per_unit, monkey
     whole = jm.rollouts(tl, starts, 30, x0)[0]
     monkeypatch.setattr(joint, "MAX_BATCH_COLUMNS", 37)  # pieces that split windows and variants
     assert np.array_equal(jm.rollouts(tl, starts, 30, x0)[0], whole)
+
+
+def test_a_window_whose_rollout_blew_up_gets_no_initial_state_step():
+    """A rollout that diverged leaves its window's normal matrix singular (huge sensitivities swamp the ridge):
+    that window gets no Gauss-Newton step, the others the step they get alone."""
+    from cosim_plugins.identify.joint import _corrected
+
+    rng = np.random.default_rng(0)
+    w, rows = 3, 5
+    S = rng.normal(size=(w, rows, 3, 6))
+    S[1] = 0.0
+    S[1, :, :, :2] = 1e120  # two position components move alike, so hugely that the ridge is lost: G is singular
+    q0, tz, use = rng.normal(size=(w, rows, 3)), np.zeros((w, rows, 3)), np.ones((w, rows), bool)
+    _, d, _, _ = _corrected(q0, S, use, tz)
+    assert np.all(d[1] == 0.0)
+    _, alone, _, _ = _corrected(q0[[0, 2]], S[[0, 2]], use[[0, 2]], tz[[0, 2]])
+    assert np.allclose(d[[0, 2]], alone)
