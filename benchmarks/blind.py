@@ -474,8 +474,11 @@ def _finished(lines: Path, cases: list, groups) -> list[dict]:
             kept.append(rec)  # another group's record: carried over untouched
             continue
         case = drawn.get((family(rec.get("group", "")), rec.get("index")))
+        # a multi case whose pair never showed was replaced by another pair: it matches the pair first drawn
+        first = ((rec.get("draw") or {}).get("pairs") or [None])[0]
+        effect = "+".join(first) if first else rec.get("effect")
         same = case is not None and (case.group, case.effect, case.seed) == (
-            rec.get("group"), rec.get("effect"), rec.get("seed", case.seed))
+            rec.get("group"), effect, rec.get("seed", case.seed))
         if not same:
             raise SystemExit(f"--resume: {lines}:{n} is case {rec.get('index')} {rec.get('group')} "
                              f"{rec.get('effect')}, not in this draw (other --cases/--multi-cases/"

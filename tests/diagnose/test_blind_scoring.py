@@ -44,3 +44,25 @@ def test_a_discovery_on_top_of_a_chosen_effect_is_judged_with_it():
            "discovered": {"status": "found", "reduction": 0.4, "t_stat": 5.0}}
     assert blind.summarise([rec])["outside"]["discovered_ok"] == 1.0
     assert blind.summarise([{**rec, "chosen_reduction": 0.0}])["outside"]["discovered_ok"] == 0.0
+
+
+def test_resume_keeps_a_multi_case_whose_pair_was_replaced(tmp_path):
+    """Seed 57's multi_003 was drawn as an anisotropic drag and an actuation lag, which never showed, and ran as a
+    wall drag and a camera latency: --resume keeps it, diagnoses an errored case again, and refuses a record of
+    another draw."""
+    import json
+
+    import blind_sim
+
+    case = blind_sim.draw_multi_cases(10, 57)[3]
+    assert case.effect == "anisotropic_drag+actuation_lag"
+    ran = {"group": "multi", "index": 3, "effect": "wall_drag+sensor_latency", "seed": case.seed,
+           "draw": {"pairs": [["anisotropic_drag", "actuation_lag"], ["wall_drag", "sensor_latency"]]}}
+    lines = tmp_path / "cases.jsonl"
+    lines.write_text(json.dumps(ran) + "\n")
+    assert blind._finished(lines, [case], ["multi"]) == [ran]
+    lines.write_text(json.dumps({**ran, "error": "LinAlgError: Singular matrix"}) + "\n")
+    assert blind._finished(lines, [case], ["multi"]) == []
+    lines.write_text(json.dumps({**ran, "seed": case.seed + 1}) + "\n")
+    with pytest.raises(SystemExit, match="not in this draw"):
+        blind._finished(lines, [case], ["multi"])
