@@ -6,8 +6,8 @@ position at most, take up part of it: the stepwise search names them, and
 discovery then finds the rest of the same flow in what they leave. Naming
 them sends the lab after a pump or a coil that is not there.
 
-The check runs when discovery found a form that explains what the chosen
-effects leave. For each chosen force E (not a group, not a lag or latency:
+The check runs when the form discovered on what the chosen effects leave
+lowers their error by >= 10 % with t >= 3. For each chosen force E (not a group, not a lag or latency:
 the discovered terms are forces of position, velocity and command, so they
 can take the place of a force only), the model without E is refitted and
 discovery runs on what it leaves, finding a form D without E's help. Then E
@@ -48,13 +48,12 @@ OWN_TERMS = {
 
 def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None, key: str, say) -> list:
     """Drop from ``selection`` (in place: ``steps``, ``final``) every chosen force that stands in for a form
-    outside the library (see the module doc); returns
-    a :class:`~.result.Dropped` (``given`` "discovered") for each, in the order dropped.
+    outside the library (see the module doc); returns a :class:`~.result.Dropped` (``given`` "discovered") for
+    each, in the order dropped.
 
     ``discover_on(fit, exclude) -> (Discovered, effect file source, Fit or None)`` runs discovery on what ``fit``
     leaves without the terms ``exclude`` (:func:`.pipeline._discover`), the Fit being ``fit``'s model refitted
-    with the discovered form;
-    ``by_name`` maps a candidate's name to its Effect.
+    with the discovered form; ``by_name`` maps a candidate's name to its Effect.
     """
     gone = []
     while True:

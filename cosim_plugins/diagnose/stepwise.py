@@ -291,11 +291,11 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
     ``screen``: every effect first gets a quick fit (``fitter.with_effects(..., quick=True)``); the full fit
     goes to the :data:`SCREEN_KEEP` best whose quick drop reaches :data:`SCREEN_MIN` (the :data:`SCREEN_KEEP`
     best when none does: an actuation lag given a quadratic drag gained 0.0 % by its quick fit, 81 % by its
-    true form), the others keep their quick entry (marked ``"screened": True``). A quick fit stops sooner and skips the
-    open-loop polish that ``before`` had, so its drop is measured against ``before`` refitted the same quick way,
-    with no effect added (``fitter.with_effects(before, [], quick=True)``): against the polished ``before`` every
-    quick fit would look worse, the polish's gain counted as the candidate's loss. :data:`SCREEN_MIN` is well below
-    the verdict's own threshold.
+    true form), the others keep their quick entry (marked ``"screened": True``). A quick fit stops sooner and
+    skips the open-loop polish that ``before`` had, so its drop is measured against ``before`` refitted the same
+    quick way, with no effect added (``fitter.with_effects(before, [], quick=True)``): against the polished
+    ``before`` every quick fit would look worse, the polish's gain counted as the candidate's loss.
+    :data:`SCREEN_MIN` is well below the verdict's own threshold.
     """
     entries, fits = {}, {}
     todo = list(effects)
