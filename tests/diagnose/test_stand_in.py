@@ -32,7 +32,7 @@ def test_a_uniform_flow_standing_in_for_a_turning_one_is_dropped(tmp_path):
     logs = blind_sim.simulate(case, tmp_path / "logs")
     plugins.reset()
     diag = run(logs, settings=Settings(candidates=["background_flow", "gradient_force"], drift=False,
-                                       discover=True)).json
+                                       discover=True, fit_windows=300)).json
     sw = diag["stepwise"]
     assert sw["rounds"][0][0]["effect"] == "gradient_force"
     dropped = {d["effect"]: d for d in sw["dropped"]}
