@@ -275,7 +275,6 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                 final = selection.final
                 _drop_stand_ins(result.stepwise, selection, gone)
                 result.fit_notes = fit_notes(result)
-                result.verdict = verdict(result, s.reference)
                 result.discovered, source, found_fit = discover_on(final)
         if found_fit is not None and discovered_explains(result, s.reference):
             stand_in = {d.effect for d in result.stepwise.dropped if d.given == "discovered"}
@@ -357,7 +356,6 @@ def stepwise_result(sel: Selection, key: str, max_effects: int) -> Stepwise:
         return RoundEntry(effect=e["effect"], rollout_mm=e["rollout_mm"][key], reduction=e["reduction"],
                           t_stat=e["t_stat"], identifiable=e["identifiable"])
 
-    start, final = sel.start.summary["rollout_mm"], sel.final.summary["rollout_mm"]
     return Stepwise(
         max_effects=max_effects, stop=sel.stop,
         rounds=[[compact(e) for e in entries] for entries in sel.rounds],
@@ -369,9 +367,14 @@ def stepwise_result(sel: Selection, key: str, max_effects: int) -> Stepwise:
                           alone=compact(st.alone) if st.alone is not None else None)
                for i, st in enumerate(sel.steps)],
         dropped=[Dropped(**d) for d in sel.dropped],
-        joint=Joint(effects=sel.chosen, rollout_mm=final,
-                    reduction={h: reduction_of(start[h], final[h]) for h in final}),
+        joint=_joint(sel),
     )
+
+
+def _joint(sel: Selection) -> Joint:
+    """The chosen effects together: the final model's errors and their drop against the search's start."""
+    start, final = sel.start.summary["rollout_mm"], sel.final.summary["rollout_mm"]
+    return Joint(effects=sel.chosen, rollout_mm=final, reduction={h: reduction_of(start[h], final[h]) for h in final})
 
 
 def _discovered_passes(found: Discovered) -> bool:
@@ -387,9 +390,7 @@ def _drop_stand_ins(sw: Stepwise, selection: Selection, gone: list) -> None:
     names = {d.effect for d in gone}
     sw.steps = [st for st in sw.steps if st.effects[0] not in names]
     sw.dropped += gone
-    start, final = selection.start.summary["rollout_mm"], selection.final.summary["rollout_mm"]
-    sw.joint = Joint(effects=selection.chosen, rollout_mm=final,
-                     reduction={h: reduction_of(start[h], final[h]) for h in final})
+    sw.joint = _joint(selection)
 
 
 def _left_above_floor(result: DiagnosisResult, key: str) -> bool:
