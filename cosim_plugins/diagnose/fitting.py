@@ -15,7 +15,7 @@ import numpy as np
 
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose.stepwise import Fit
-from cosim_plugins.diagnose.verdict import paired_t, paired_t_horizons
+from cosim_plugins.diagnose.verdict import gain_t, paired_t, paired_t_horizons
 from cosim_plugins.identify.joint import JointModel, fit_joint, supports_effects
 
 QUICK_NFEV = 6  # evaluations of a screening fit (stepwise rounds after the first, see stepwise.rank)
@@ -98,7 +98,8 @@ class Fitter:
         return paired_t_horizons(ref.ev, new.ev, self.test_starts, self.block_rows)
 
     def entry(self, effect, fit: Fit, identifiable: bool, before: Fit) -> dict:
-        """A candidate's rank entry: its errors, reductions and paired t against ``before``; its parameters."""
+        """A candidate's rank entry: its errors, reductions and t of its gain over ``before`` (:func:`gain_t`); its
+        parameters."""
         key = self.s.reference
         red = {h: reduction_of(before.summary["rollout_mm"][h], fit.summary["rollout_mm"][h])
                for h in fit.summary["rollout_mm"]}
@@ -110,7 +111,8 @@ class Fitter:
         fitted = getattr(fit, "fitted", None)
         return {"effect": effect.name, "kind": effect.kind, "rollout_mm": fit.summary["rollout_mm"],
                 "reduction": red[key], "reduction_by_horizon": red,
-                "t_stat": self.paired_t(before.ev[key], fit.ev[key]), "identifiable": identifiable,
+                "t_stat": gain_t(before.ev[key], fit.ev[key], self.test_starts, self.block_rows),
+                "identifiable": identifiable,
                 "params": params, "fit": fitted.fit if fitted else {}, "conditioning": jm.conditioning,
                 "doc": effect.doc}
 

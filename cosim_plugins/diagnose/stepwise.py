@@ -117,10 +117,6 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
     say = say or (lambda msg: None)
     current, steps, rounds, remaining = start, [], [], list(candidates)
     by_name = {e.name: e for e in candidates}
-    # a candidate whose parameters did not change the predictions in the first round acts where the logs never
-    # go (a spin rate never reached, a wall never neared): no effect added changes that, so it is not refitted
-    # in later rounds, its entry carried
-    unseen = {e["effect"]: e for e in first[0] if not e["identifiable"]}
     stop = "max_effects"
     pending = None  # a look-ahead's tentative step: (its index in steps, the model before it, remaining before it)
     for round_no in range(1, max_effects + 1):
@@ -136,9 +132,9 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
             say(f"round {round_no}: {len(remaining)} candidates given {', '.join(s.effects[0] for s in steps)}")
             # after a tentative step every candidate gets the full fit: a quick fit on short windows can miss
             # the partner that only shows over the longer horizons
-            entries, fits = rank(fitter, current, [e for e in remaining if e.name not in unseen], key, say,
-                                 screen=pending is None)
-            entries += [unseen[e.name] for e in remaining if e.name in unseen]
+            # every remaining candidate, those not identifiable in an earlier round too: a step-out fitted beside a
+            # missing flow can run to f_so = 100 Hz (never steps out), and given the flow it is found
+            entries, fits = rank(fitter, current, remaining, key, say, screen=pending is None)
         rounds.append(entries)
         best = next((e for e in entries if e["identifiable"]), None)
         if best is not None and passes(best, current.error(key), floor.get(key), key):

@@ -13,9 +13,11 @@ from cosim_plugins.diagnose.render import to_json
 from cosim_plugins.diagnose.verdict import (
     _block_t,
     explained_share,
+    gain_t,
     paired_t,
     paired_t_horizons,
     passes,
+    trimmed_t,
 )
 
 K = "1.0"
@@ -387,6 +389,39 @@ def test_block_t_by_hand():
     assert _block_t(d, starts, 0) == pytest.approx(np.mean(d) / (np.std(d, ddof=1) / np.sqrt(6)))  # block of 1
     assert _block_t(d[:4], starts[:4], 2) == 0.0  # two blocks: no t
     assert _block_t(np.ones(6), starts, 2) == 0.0  # no spread
+
+
+def test_trimmed_t_by_hand():
+    """Ten block means, one cut at each end: the eight left average 2.5; winsorised (the cut ones set to their
+    neighbours) their variance is 2.0 / 3; Yuen's standard error sqrt(9 var_w / (8 * 7))."""
+    means = np.array([-50.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 4.0, 4.0, 90.0])
+    w = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 3.0, 3.0, 4.0, 4.0, 4.0])
+    want = 2.5 / np.sqrt(9 * np.var(w, ddof=1) / 56)
+    assert trimmed_t(means) == pytest.approx(want)
+    few = means[:4]  # fewer than ten: none cut, the plain t
+    assert trimmed_t(few) == pytest.approx(np.mean(few) / (np.std(few, ddof=1) / 2.0))
+    assert trimmed_t(np.ones(10)) == 0.0  # no spread
+
+
+def test_gain_t_is_not_swayed_by_a_few_blocks_that_gain_far_more():
+    """Forty blocks gain 0.2-0.4 mm each and two gain 8 mm (the model before blew up there): the plain t is
+    below 3, the gates' t is not. Forty blocks that lose 0.1-0.3 mm and two that gain 8 mm: the gates' t is the
+    plain t (the trimmed one is negative)."""
+    rng = np.random.default_rng(3)
+    e = np.zeros((42, 3))
+    starts = np.arange(42)
+    ref = {"valid": np.ones(42, bool), "err": e + [[10.0, 0.0, 0.0]]}
+
+    def cand(gains):
+        err = e.copy()
+        err[:, 0] = 10.0 - gains
+        return {"valid": np.ones(42, bool), "err": err}
+
+    gains = np.r_[rng.uniform(0.2, 0.4, 40), 8.0, 8.0]
+    assert paired_t(ref, cand(gains), starts, 1) < 3.0 < gain_t(ref, cand(gains), starts, 1)
+    losses = np.r_[-rng.uniform(0.1, 0.3, 40), 8.0, 8.0]
+    assert trimmed_t(np.sort(losses)) < 0.0
+    assert gain_t(ref, cand(losses), starts, 1) == pytest.approx(paired_t(ref, cand(losses), starts, 1))
 
 
 def test_paired_t_counts_windows_valid_in_both():
