@@ -287,7 +287,8 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
     ``screen``: every effect first gets a quick fit (``fitter.with_effects(..., quick=True)``); the full fit
     goes to the :data:`SCREEN_KEEP` best whose quick drop reaches :data:`SCREEN_MIN` (the :data:`SCREEN_KEEP`
     best when none does: an actuation lag given a quadratic drag gained 0.0 % by its quick fit, 81 % by its
-    true form), the others keep their quick entry (marked ``"screened": True``). A quick fit stops sooner and
+    true form), and so does every effect whose quick fit changed nothing (not identifiable); the others keep
+    their quick entry (marked ``"screened": True``). A quick fit stops sooner and
     skips the open-loop polish that ``before`` had, so its drop is measured against ``before`` refitted the same
     quick way, with no effect added (``fitter.with_effects(before, [], quick=True)``): against the polished
     ``before`` every quick fit would look worse, the polish's gain counted as the candidate's loss.
@@ -304,6 +305,9 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
         ranked = sorted((e for e in entries.values() if e["identifiable"]), key=lambda e: -e["reduction"])
         # when no quick fit reaches SCREEN_MIN the quick fits are least to be trusted: the best still get the full one
         hopeful = [e for e in ranked if e["reduction"] >= SCREEN_MIN][:SCREEN_KEEP] or ranked[:SCREEN_KEEP]
+        # a quick fit that changes nothing says little: a step-out's six evaluations left f_so above the band,
+        # where it acts on nothing, while its full fit lowered the error by 77 % given the same model
+        hopeful += [e for e in entries.values() if not e["identifiable"]]
         todo = [e for e in effects if e.name in {h["effect"] for h in hopeful}]
         if say:
             say(f"  screened {len(effects)} candidates by a quick fit; refitting "

@@ -17,7 +17,8 @@ GLOSSARY = {
                    "the logs): no model can go below it",
     "reduction": "share of the reference model's held-out error (at the reference horizon) that an effect "
                  "removes once refitted jointly with the model: 1 - after / before",
-    "t": "paired t statistic of that drop over 1 s blocks of held-out windows; from 3 up the drop is real, below it "
+    "t": "paired t statistic of that drop over 1 s blocks of held-out windows (trimmed of the tenth of blocks at "
+         "each end when that is larger); from 3 up the drop is real, below it "
          "it may be chance",
     "eta^2": "share of the error's variance that sorting the windows by one condition (speed, height, ...) "
              "explains: 0 none, 1 all",

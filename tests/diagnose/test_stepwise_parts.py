@@ -183,6 +183,27 @@ def test_when_no_quick_fit_reaches_the_screen_the_best_still_get_the_full_fit():
     assert sum(not e.get("screened") for e in entries) == SCREEN_KEEP
 
 
+def test_a_candidate_whose_quick_fit_changes_nothing_still_gets_the_full_fit():
+    """A step-out's quick fit leaves f_so above the band (not identifiable) while its full fit, given a gradient
+    force, lowers the error by 77 %: it is refitted in full beside the three best quick fits, and leads."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import SCREEN_KEEP, rank
+
+    class Stuck(_Quick):
+        def with_effects(self, before, effects, quick=False):
+            fit, _ = super().with_effects(before, effects, quick)
+            return fit, not (quick and any(e.name == "step_out" for e in effects))
+
+    gain = {"step_out": 0.77, "flow": 0.1, "drag": 0.08, "wall": 0.06, "lag": 0.05}
+    entries, _ = rank(Stuck(gain), Stuck(gain)._fit(1.0), [SimpleNamespace(name=n) for n in gain], "1.0",
+                      screen=True)
+    assert entries[0]["effect"] == "step_out" and entries[0]["identifiable"]
+    assert entries[0]["reduction"] == pytest.approx(0.77)
+    assert {e["effect"] for e in entries if not e.get("screened")} == {"step_out", "flow", "drag", "wall"}
+    assert SCREEN_KEEP == 3
+
+
 def test_the_look_alikes_of_a_candidate_about_to_be_named_get_their_full_fit():
     """A latency fully fitted leads a round in which the lag had only its quick fit: the lag gets the full fit
     before the group test, and leads once it does better; a flow's quick entry stays as it was."""
