@@ -368,6 +368,7 @@ def stepwise_result(sel: Selection, key: str, max_effects: int) -> Stepwise:
                for i, st in enumerate(sel.steps)],
         dropped=[Dropped(**d) for d in sel.dropped],
         joint=_joint(sel),
+        rounds_given=sel.rounds_given,
     )
 
 

@@ -272,7 +272,10 @@ def _stepwise_section(r: DiagnosisResult, key: str) -> list[str]:
 
 
 def _given(sw: Stepwise, n: int) -> str:
-    """The effects chosen before round ``n`` (1-based), joined by ' + '."""
+    """The effects round ``n`` (1-based) was given, joined by ' + ' (in a file that did not record them: the
+    effects chosen before it)."""
+    if sw.rounds_given is not None:
+        return " + ".join(sw.rounds_given[n - 1])
     return " + ".join(st.effects[0] for st in sw.steps[: n - 1])
 
 

@@ -7,7 +7,8 @@ its diagnosis.json key, so the file reads like the classes below.
 Conventions: errors are mean open-loop errors on the held-out windows [mm]; a ``{horizon: ...}`` mapping
 is keyed by the horizon's name as given (``"0.1"``, ``"1.0"``: seconds, as text) and holds None where no
 window reaches that horizon; a reduction is ``1 - after / before`` (a share, not a percent); a t is the
-paired t over blocks of windows (:func:`~.verdict.paired_t`). ``params`` of a fitted effect map each
+paired t over blocks of windows (:func:`~.verdict.paired_t`; a candidate's, the larger of it and the trimmed
+t, :func:`~.verdict.gain_t`). ``params`` of a fitted effect map each
 parameter's name to ``{"value", "std", "unit"}``.
 
 The pipeline builds the result step by step (the verdict reads what is there so far); once
@@ -225,7 +226,9 @@ class Joint:
 class Stepwise:
     """The stepwise search (:mod:`.stepwise`): ``stop`` why it stopped (a key of ``stepwise.STOPS``),
     ``rounds`` each round's candidates best first, the ``steps`` chosen, the effects ``dropped``, the
-    ``joint`` model; ``given_discovered``: the search again on top of a discovered form, when it ran."""
+    ``joint`` model; ``given_discovered``: the search again on top of a discovered form, when it ran;
+    ``rounds_given``: the effects each round was given (a tentative step dropped later among them; absent in
+    files written before it was recorded)."""
 
     max_effects: int
     stop: str
@@ -234,6 +237,7 @@ class Stepwise:
     dropped: list[Dropped]
     joint: Joint
     given_discovered: Stepwise | None = _optional()
+    rounds_given: list[list[str]] | None = _optional()
 
 
 @dataclass

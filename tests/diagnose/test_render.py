@@ -44,6 +44,19 @@ def test_the_printed_summary_and_report_read_as_before(name):
     assert markdown(result, pngs) == report
 
 
+def test_a_round_is_rendered_with_the_model_it_was_given():
+    """A round run given a tentative step that was dropped later names that step, not the effects chosen before
+    it (files that did not record the rounds' models render as before, above); the record survives
+    diagnosis.json."""
+    _, result = _case("fw")
+    chosen = [st.effects[0] for st in result.stepwise.steps]
+    result.stepwise.rounds_given = [[]] + [["quadratic_drag"]] * (len(result.stepwise.rounds) - 1)
+    text = terminal(result)
+    assert "round 2, given quadratic_drag:" in text and f"round 2, given {chosen[0]}:" not in text
+    again = DiagnosisResult.from_json(json.loads(json.dumps(to_json(result), default=json_default)))
+    assert again.stepwise.rounds_given == result.stepwise.rounds_given
+
+
 def test_the_cases_cover_every_optional_section():
     """Each optional part of a result is in at least one case, so the checks above render it."""
     results = [_case(name)[1] for name in CASES]
