@@ -289,7 +289,7 @@ ROWS = (
         "(see [How diagnose is validated](diagnose/validation.md))",
         "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75",
         ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56",
-         "blind_s58", "blind_s60", "blind_s62"), _blind),
+         "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66"), _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
     Row("hosts_loop.py", "the racetrack loop over mutual TLS between two loopback addresses (a run over two "
@@ -387,7 +387,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s55", "seed 55 (quadratic drag's starts, latency to 25 steps)"),
                  ("blind_groups_s57", "seed 57 (stand-ins dropped)"),
                  ("blind_groups_s59", "seed 59 (the full fit when no quick fit passes the screen)"),
-                 ("blind_groups_s61", "seed 61 (trimmed t, candidates refitted after round 1)"))
+                 ("blind_groups_s61", "seed 61 (trimmed t, candidates refitted after round 1)"),
+                 ("blind_groups_s63", "seed 63 (full fit after a quick fit that changes nothing)"))
 
 
 def several_effects_table() -> str:
