@@ -181,11 +181,12 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
         if pending is not None:
             ok, without = _confirmed(fitter, steps, pending, by_name, floor.get(key), key, say)
             if not ok:
-                alone = _partner_alone(fitter, steps[-1], without, pending[1], by_name, floor.get(key), key, say)
+                partner = steps[-1]
+                alone = _partner_alone(fitter, partner, without, pending[1], by_name, floor.get(key), key, say)
                 steps, current, remaining = steps[:pending[0]], pending[1], pending[2]
                 pending = None  # the tentative step went, and nothing tentative is left to drop below
                 if alone is None:
-                    say(f"  {steps[-1].effects[0] if steps else 'its partner'} dropped too")
+                    say(f"  {partner.effects[0]} dropped too")
                     stop = "none_passes"
                     break
                 steps.append(alone)
