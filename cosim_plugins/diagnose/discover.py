@@ -240,14 +240,31 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
                 "error significantly: what is left looks like noise, or a form the candidates cannot express "
                 "(a time-varying disturbance, a delay)", "path": [[n, e] for n, e, _ in path]}
     chosen = [i for i in range(n_terms) if xi[i] != 0.0]
-    terms = [TERMS[i] for i in chosen]
-    effect = library_effect(terms, scales[chosen], coefs=xi[chosen])
+    kind = pattern([TERMS[i] for i in chosen], {TERMS[i].name: xi[i] for i in chosen}, reference.prm)
+    uniform = [c for c in cols if TERMS[c].key == "1" and c not in chosen]
+    if kind and kind[0] in FLOW_PATTERNS and uniform:  # the flow's uniform part belongs to it
+        chosen = sorted(chosen + uniform)
+        pick = [int(np.flatnonzero(cols == c)[0]) for c in chosen]
+        xi = np.zeros(n_terms)
+        xi[chosen] = np.linalg.lstsq(Jp[:, cols[pick]], rp, rcond=None)[0]
+        say(f"discover: a flow varying with position ({kind[0]}): its uniform part, "
+            f"{', '.join(TERMS[c].name for c in uniform)}, added to the form")
+    return refit_form([TERMS[i] for i in chosen], scales[chosen], xi[chosen], fit_fn,
+                      [[n, e] for n, e, _ in path])
+
+
+def refit_form(terms, scales, coefs, fit_fn, path=()) -> dict:
+    """:func:`discover`'s result for the form ``terms`` (Terms) with coefficients ``coefs`` (starts) and typical
+    sizes ``scales``: refitted by ``fit_fn``, read in words and written as an effect file."""
+    effect = library_effect(terms, scales, coefs=coefs)
     fitted, summary, ev = fit_fn(effect)
     coefs = {t.name: fitted.params[f"discovered.{t.name}"]["value"] for t in terms}
-    words = describe(terms, coefs, scales[chosen], fitted.model.prm)
+    words = describe(terms, coefs, scales, fitted.model.prm)
+    kind = pattern(terms, coefs, fitted.model.prm)
     return {"status": "found", "terms": [t.name for t in terms], "expressions": {t.name: t.expr for t in terms},
-            "params": fitted.params, "words": words, "source": effect_source(terms, coefs, scales[chosen], words),
-            "path": [[n, e] for n, e, _ in path], "fitted": fitted, "summary": summary, "ev": ev}
+            "params": fitted.params, "words": words, "source": effect_source(terms, coefs, scales, words),
+            "pattern": kind[0] if kind else None, "path": list(path), "fitted": fitted, "summary": summary,
+            "ev": ev}
 
 
 def _rms(r: np.ndarray) -> float:
@@ -346,8 +363,12 @@ def describe(terms, coefs: dict, scales, host_params: dict) -> list[str]:
     return lines
 
 
-def _reading(terms, coefs: dict, host: dict) -> str | None:
-    """The physical pattern of the strongest linear-in-position, constant and command terms, in words."""
+def pattern(terms, coefs: dict, host: dict) -> tuple[str, dict] | None:
+    """(kind, figures) of the strongest linear-in-position, constant and command terms, or None: "swirl" (the
+    horizontal force turns about a vertical axis: ``rot`` uN/mm, ``centre`` (x, y) mm), "thrust" (the thrust
+    changes with position: ``along``, ``with`` axes, ``per_10mm`` share), "shear" (a horizontal force growing
+    with height: ``g`` (2,) uN/mm), "gradient" (curl-free, linear in position) or "push" (a constant: ``c0``
+    (2,) uN). ``coefs``: term name -> coefficient [uN per the term's unit]; ``host``: the host's parameters."""
     M = np.zeros((3, 3))
     c0 = np.zeros(3)
     G = np.zeros((3, 3))
@@ -358,33 +379,59 @@ def _reading(terms, coefs: dict, host: dict) -> str | None:
             c0[t.axis] = coefs[t.name]
         elif t.key.endswith(f"_u{AXES[t.axis]}") and t.key[0] in "xyz":
             G[t.axis, "xyz".index(t.key[0])] = coefs[t.name]
-    cd1 = host.get("Cd1", 0.0)
     k = host.get("k", 0.0)
     A = 0.5 * (M - M.T)
     S = 0.5 * (M + M.T)
     rot = A[1, 0]  # f_x ~ -rot y, f_y ~ +rot x: a rotation about z
     if abs(rot) > 0 and abs(rot) >= 2 * max(np.abs(S[:2, :2]).max(), abs(A[2, 0]), abs(A[2, 1])):
-        centre = np.round(np.array([-c0[1] / rot, c0[0] / rot]) if abs(rot) > 1e-12 else np.zeros(2)) + 0.0
-        spin = f", the water turning at about {rot / cd1:+.3g} rad/s" if cd1 > 0 else ""
-        return (f"reading: the horizontal force turns about a vertical axis through about "
-                f"({centre[0]:+.0f}, {centre[1]:+.0f}) mm (a rotation about z{spin}: a swirl of the water)")
+        centre = np.array([-c0[1] / rot, c0[0] / rot]) if abs(rot) > 1e-12 else np.zeros(2)
+        return "swirl", {"rot": rot, "centre": centre}
     if np.abs(G).max() > 0 and k > 0 and np.abs(G).max() * 40 >= 0.05 * k:
         a, b = np.unravel_index(np.argmax(np.abs(G)), G.shape)
-        return (f"reading: the thrust along {AXES[a]} changes with {AXES[b]} by about "
-                f"{100 * G[a, b] * 10 / k:+.2g} % per 10 mm: the propulsion varies with position (a non-uniform "
-                "field)")
+        return "thrust", {"along": AXES[a], "with": AXES[b], "per_10mm": G[a, b] * 10 / k}
     if np.abs(M[:2, 2]).max() > 2 * max(np.abs(M[:2, :2]).max(), 1e-300):
-        g = M[:2, 2]  # horizontal force per mm of height, uN/mm
+        return "shear", {"g": M[:2, 2]}
+    if np.abs(S).max() > 0 and np.abs(S).max() >= 2 * np.abs(A).max():
+        return "gradient", {}
+    if np.abs(c0[:2]).max() > 0:
+        return "push", {"c0": c0[:2]}
+    return None
+
+
+#: Patterns of a flow of the water that varies with position. Its uniform part, the flow at the tank's origin,
+#: belongs to it: the origin is an arbitrary point (a swirl about an axis off the origin is a swirl about the
+#: origin plus a uniform flow), so the form takes the horizontal constants too (:func:`discover`) and a library
+#: uniform flow beside it is not a cause of its own (:mod:`.standin`).
+FLOW_PATTERNS = ("swirl", "shear")
+
+
+def _reading(terms, coefs: dict, host: dict) -> str | None:
+    """The physical pattern of the form (:func:`pattern`), in words."""
+    found = pattern(terms, coefs, host)
+    if found is None:
+        return None
+    kind, f = found
+    cd1 = host.get("Cd1", 0.0)
+    if kind == "swirl":
+        centre = np.round(f["centre"]) + 0.0
+        spin = f", the water turning at about {f['rot'] / cd1:+.3g} rad/s" if cd1 > 0 else ""
+        return (f"reading: the horizontal force turns about a vertical axis through about "
+                f"({centre[0]:+.0f}, {centre[1]:+.0f}) mm (a rotation about z{spin}: a swirl of the water)")
+    if kind == "thrust":
+        return (f"reading: the thrust along {f['along']} changes with {f['with']} by about "
+                f"{100 * f['per_10mm']:+.2g} % per 10 mm: the propulsion varies with position (a non-uniform "
+                "field)")
+    if kind == "shear":
+        g = f["g"]  # horizontal force per mm of height, uN/mm
         size = float(np.hypot(*g))
         shear = f" (about {size / cd1:.3g} mm/s per mm of height)" if cd1 > 0 else ""
         return (f"reading: a horizontal force that grows with height, pointing along ({g[0] / size:+.2f}, "
                 f"{g[1] / size:+.2f}) in (x, y): a shear flow{shear}")
-    if np.abs(S).max() > 0 and np.abs(S).max() >= 2 * np.abs(A).max():
+    if kind == "gradient":
         return "reading: a force field linear in position and curl-free, like a magnetic gradient or a centring force"
-    if np.abs(c0[:2]).max() > 0:
-        drift = f" (a drift of the water of about ({c0[0] / cd1:+.2g}, {c0[1] / cd1:+.2g}) mm/s)" if cd1 > 0 else ""
-        return f"reading: a steady horizontal push{drift}"
-    return None
+    c0 = f["c0"]
+    drift = f" (a drift of the water of about ({c0[0] / cd1:+.2g}, {c0[1] / cd1:+.2g}) mm/s)" if cd1 > 0 else ""
+    return f"reading: a steady horizontal push{drift}"
 
 
 def effect_source(terms, coefs: dict, scales, words) -> str:

@@ -3,6 +3,7 @@ more effects, held-out evaluations, rank entries and paired t (:class:`Fitter`).
 
 from __future__ import annotations
 
+import copy
 import inspect
 import multiprocessing
 import pickle
@@ -80,6 +81,13 @@ class Fitter:
         fit_joint(jm, self.ttr, self.fit_starts, self.fit_len, max_nfev=self.s.max_nfev, score=self.score,
                   polish=self.polish)
         return self.evaluate(jm)
+
+    def beside(self, effects) -> "Fitter":
+        """This fitter, its models holding ``effects`` too wherever :meth:`without` takes chosen ones out (a
+        discovered form a search runs on top of stays in)."""
+        other = copy.copy(self)
+        other.added = [*self.added, *effects]
+        return other
 
     def without(self, final: Fit, keep) -> Fit:
         """The final model's host with only the effects ``keep``, started at the final solution and refitted."""

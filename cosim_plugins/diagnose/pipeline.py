@@ -18,8 +18,10 @@ Pipeline of ``cosim diagnose`` (units mm, mm/s, Hz, s):
    the reference horizon; then choose effects stepwise, each given the ones
    before, and declare look-alike groups (:mod:`.stepwise`, :mod:`.lookalike`);
 6. discover a form outside the library in what the chosen effects leave
-   (:mod:`.discover`); drop a chosen force that only stands in for it
-   (:mod:`.standin`); design the experiment that tells a look-alike group
+   (:mod:`.discover`); drop a chosen force that only stands in for it, and
+   let a listed effect take the place of its own terms in the form
+   (:mod:`.standin`); search the listed effects again on top of the form;
+   design the experiment that tells a look-alike group
    apart (:mod:`.experiment`); :mod:`.verdict` names the effects (or not).
 
 What it finds is a :class:`~.result.DiagnosisResult`, built here step by step;
@@ -63,7 +65,7 @@ from cosim_plugins.diagnose.result import (
     StepResult,
     Stepwise,
 )
-from cosim_plugins.diagnose.standin import stand_ins
+from cosim_plugins.diagnose.standin import OWN_TERMS, in_place_of_terms, stand_ins
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T, discovered_explains, fit_notes, paired_t, verdict
@@ -261,10 +263,11 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     result.fit_notes = fit_notes(result)
     result.verdict = verdict(result, s.reference)
     source = None
+    groups = [st for st in selection.steps if st.is_group]  # look-alikes, the experiment's subject
     if s.discover or result.verdict.status == "unexplained" or _left_above_floor(result, s.reference):
-        def discover_on(fit, tell=say, exclude=()):
+        def discover_on(fit, tell=say, exclude=(), form=None):
             return _discover(fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, tell, open_train,
-                             exclude)
+                             exclude, form)
 
         result.discovered, source, found_fit = discover_on(final)
         if found_fit is not None and selection.steps and _discovered_passes(result.discovered):
@@ -276,15 +279,21 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                 _drop_stand_ins(result.stepwise, selection, gone)
                 result.fit_notes = fit_notes(result)
                 result.discovered, source, found_fit = discover_on(final)
-        if found_fit is not None and discovered_explains(result, s.reference):
+        swap = () if found_fit is None else in_place_of_terms(fitter, final, result.discovered, found_fit,
+                                                                candidates, floor[s.reference], s.reference, say)
+        if swap:
+            again = discover_on(final, form=swap[1])
+            if again[2] is not None:
+                result.discovered, source, found_fit = again
+        if found_fit is not None and (swap or discovered_explains(result, s.reference)):
             stand_in = {d.effect for d in result.stepwise.dropped if d.given == "discovered"}
             given = _given_discovered(fitter, found_fit, [e for e in candidates if e.name not in stand_in],
                                       selection, s, floor, say)
             if given is not None:
                 result.stepwise.given_discovered = stepwise_result(given, s.reference, s.max_effects)
+                groups += [st for st in given.steps if st.is_group]
         result.verdict = verdict(result, s.reference)
     experiment = None
-    groups = [st for st in selection.steps if st.is_group]
     if groups:
         say(f"experiment: designing the log that tells {' from '.join(groups[0].effects)} apart ...")
         floors = [f for f in floor.values() if f is not None]  # the separation is averaged over the horizons too
@@ -409,20 +418,26 @@ def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selecti
     error they make together to be named first, and shows once the discovered form is in. None when no room
     (``--max-effects``) or no candidate is left."""
     taken = {m for st in selection.steps for m in st.effects}
-    left = [e for e in candidates if e.name not in taken]
+    in_form = set(found.model.effects[-1].terms or ())
+    # a candidate whose own terms are all in the form is in it already (the uniform part of a swirl)
+    left = [e for e in candidates if e.name not in taken
+            and not (OWN_TERMS.get(e.name) and in_form.issuperset(OWN_TERMS[e.name]))]
     room = s.max_effects - len(selection.steps)
     if not left or room < 1:
         return None
     say(f"given the discovered form: {len(left)} candidates")
+    fitter = fitter.beside(found.model.effects[-1:])  # the form stays in when a chosen effect is taken out
     first = rank(fitter, found, left, s.reference, say, screen=True)
     return select(fitter, found, left, first, room, floor, s.reference, say)
 
 
-def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, say, train, exclude=()):
+def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, say, train, exclude=(),
+              form=None):
     """(the result's ``discovered``, effect file source or None, the final model refitted with the discovered form
     (a Fit) or None): the sparse regression of :mod:`.discover` on what the final model (the chosen effects in)
-    leaves, without the terms named in ``exclude``."""
-    from cosim_plugins.diagnose.discover import discover
+    leaves, without the terms named in ``exclude``; or, given ``form`` ((terms, scales, coefficients):
+    :func:`.standin.in_place_of_terms`), that form refitted on top of the final model."""
+    from cosim_plugins.diagnose.discover import discover, refit_form
 
     reference = final.model
     if not supports_effects(reference.host):
@@ -435,7 +450,8 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
         return fit.fitted, fit.summary, fit.ev
 
     test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
-    found = discover(reference, ttr, tte, train, test, refit, say, jobs=s.jobs, exclude=exclude)
+    found = (discover(reference, ttr, tte, train, test, refit, say, jobs=s.jobs, exclude=exclude) if form is None
+             else refit_form(*form, refit))
     if found["status"] != "found":
         return Discovered(**found), None, None
     summ, ev = found.pop("summary"), found.pop("ev")

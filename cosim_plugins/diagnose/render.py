@@ -254,7 +254,8 @@ def _stepwise_section(r: DiagnosisResult, key: str) -> list[str]:
         lines.append(f"- dropped by {by}: {d.effect} ({d.reduction:+.1%}, t = {d.t_stat:.1f})"
                      + (f"; the form found without it ({', '.join(d.terms)}) lowers the error by "
                         f"{d.form_reduction:+.1%} (t = {d.form_t_stat:.1f}) given it"
-                        if d.given == "discovered" else ""))
+                        if d.given == "discovered" else "")
+                     + (f": the uniform part of that {d.part_of} flow" if d.part_of else ""))
     exp = r.experiment
     if exp:
         lines += ["", "## The experiment that tells the look-alikes apart", "",

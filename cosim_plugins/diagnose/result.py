@@ -200,8 +200,9 @@ class StepResult:
 class Dropped:
     """An effect the backward check took out again; ``given`` "drift": the drift test did, "discovered": it
     stands in for a form outside the library (:mod:`.standin`), whose ``terms`` were found without it and lower
-    the error by ``form_reduction`` (paired t ``form_t_stat``) given it. ``reduction``, ``t_stat``: the
-    effect's drop given the others (and the drift, or the form)."""
+    the error by ``form_reduction`` (paired t ``form_t_stat``) given it; ``part_of`` the pattern of that form
+    (a "swirl" or "shear", :data:`.discover.FLOW_PATTERNS`) when the effect, a uniform flow, is its uniform part.
+    ``reduction``, ``t_stat``: the effect's drop given the others (and the drift, or the form)."""
 
     effect: str
     reduction: float
@@ -210,6 +211,7 @@ class Dropped:
     terms: list | None = _optional()
     form_reduction: float | None = _optional()
     form_t_stat: float | None = _optional()
+    part_of: str | None = _optional()
 
 
 @dataclass
@@ -291,7 +293,8 @@ class Discovered:
     "unsupported", with an ``explanation`` unless found; when found the chosen ``terms``, their
     ``expressions``, fitted ``params``, ``words``, the ``file`` written, and the refit's ``rollout_mm``,
     ``reduction`` (reference horizon), ``reduction_by_horizon`` and ``t_stat`` against the chosen effects;
-    ``path`` [[term, error], ...] the forward selection's steps."""
+    ``pattern`` the kind its linear terms make (:func:`.discover.pattern`: "swirl", "thrust", "shear",
+    "gradient", "push"); ``path`` [[term, error], ...] the forward selection's steps."""
 
     status: str
     explanation: str | None = _optional()
@@ -299,6 +302,7 @@ class Discovered:
     expressions: dict | None = _optional()
     params: dict | None = _optional()
     words: list | None = _optional()
+    pattern: str | None = _optional()
     path: list | None = _optional()
     rollout_mm: Horizons | None = _optional()
     file: str | None = _optional()

@@ -17,7 +17,12 @@ and D are refitted together with the others; E is a stand-in when
 - D still passes given E (the others and E in): D holds something E cannot
   express.
 
-A uniform flow that is really there fails the first test. D may not use
+A uniform flow that is really there fails the first test, unless D is a flow
+that varies with position (a swirl or a shear, :data:`.discover.FLOW_PATTERNS`):
+then the uniform flow is a stand-in when D passes given it, whatever it adds
+given D. The uniform part of such a flow is its value at the tank's origin, an
+arbitrary point: a swirl about an axis off the origin is a swirl about the
+origin plus a uniform flow, one flow and not two causes. D may not use
 the terms that express E's own form (:data:`OWN_TERMS`: a constant for the
 uniform flow, |v| v and |u| u for the quadratic drag, the wall decays for the
 wall drag): found without them, D cannot take E's place, and E still passes
@@ -27,10 +32,19 @@ and E would look like a stand-in.
 The weakest stand-in is dropped and the check starts again on the effects
 left, until none is a stand-in; the pipeline then discovers the form on what
 is left.
+
+The converse (:func:`in_place_of_terms`): a library effect the search did not
+name, whose own terms the discovered form holds (a quadratic drag's |u| u
+beside a shear's terms), takes their place when its one law does as well as
+they do; the form without them is refitted, and the search on top of it
+names the effect if it passes the gates there.
 """
 
 from __future__ import annotations
 
+import numpy as np
+
+from cosim_plugins.diagnose.discover import FLOW_PATTERNS
 from cosim_plugins.diagnose.result import Dropped
 from cosim_plugins.diagnose.verdict import passes
 
@@ -72,20 +86,78 @@ def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None
             both, _ = fitter.with_effects(selection.final, [form], fresh=False)
             given_form = fitter.entry(effect, both, True, with_form)
             form_given = fitter.entry(form, both, True, selection.final)
-            stands_in = (not passes(given_form, with_form.error(key), floor, key)
+            part_of_flow = effect.name == "background_flow" and found.pattern in FLOW_PATTERNS
+            stands_in = ((part_of_flow or not passes(given_form, with_form.error(key), floor, key))
                          and passes(form_given, selection.final.error(key), floor, key))
             say(f"stand-in: {effect.name} given the form found without it {given_form['reduction']:+.1%} "
                 f"(t = {given_form['t_stat']:.1f}); the form given {effect.name} {form_given['reduction']:+.1%} "
-                f"(t = {form_given['t_stat']:.1f})" + (": a stand-in" if stands_in else ""))
+                f"(t = {form_given['t_stat']:.1f})" + (": a stand-in" if stands_in else "")
+                + (f" (the uniform part of the {found.pattern} found)" if stands_in and part_of_flow else ""))
             if stands_in:
-                trials.append((given_form["reduction"], i, given_form, form_given, found, without))
+                trials.append((given_form["reduction"], i, given_form, form_given, found, without,
+                               found.pattern if part_of_flow else None))
         if not trials:
             return gone
-        _, i, given_form, form_given, found, without = min(trials, key=lambda x: x[0])
+        _, i, given_form, form_given, found, without, part_of = min(trials, key=lambda x: x[0])
         step = selection.steps.pop(i)
         gone.append(Dropped(effect=step.effects[0], reduction=given_form["reduction"], t_stat=given_form["t_stat"],
                             given="discovered", terms=list(found.terms or ()),
-                            form_reduction=form_given["reduction"], form_t_stat=form_given["t_stat"]))
+                            form_reduction=form_given["reduction"], form_t_stat=form_given["t_stat"],
+                            part_of=part_of))
         say(f"stand-in: {step.effects[0]} dropped: a form outside the library ({', '.join(found.terms or ())}) "
             "explains what it did, and more")
         selection.final = without
+
+
+def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float | None, key: str, say) -> tuple:
+    """(the library effect's name, the form less its terms: (Terms, scales, coefficients)) or (): a listed effect
+    whose own form (:data:`OWN_TERMS`) the discovered form holds, and which explains the data as well as those
+    terms.
+
+    Discovery on what ``final`` leaves may take up a library effect the search did not name beside the form
+    outside the library: a quadratic drag beside a shear flow, found as |u| u terms next to the shear's. For each
+    such candidate E (of ``candidates``, not in ``final``), the form less E's own terms is refitted with E (E's
+    starts spread as in the search); when the whole form (``with_form``: ``final`` plus it) does not pass the
+    verdict's gates against that model, E's one law does what its terms did: the form less them (its
+    coefficients as fitted beside E) replaces the form, and the search given the form then judges E. (Found again
+    by the regression without E's terms, the form is poorer: linearised on a model without E, the regression
+    picks other terms.) A uniform flow beside a flow that varies with position is not tried: its constants
+    belong to that flow (:data:`.discover.FLOW_PATTERNS`); nor is a candidate whose own terms are the whole
+    form. The candidate whose model errs least wins.
+    """
+    from cosim_plugins.diagnose.discover import library_effect
+
+    form = with_form.model.effects[-1]
+    terms = set(form.terms or ())
+    taken = {e.name for e in final.model.effects}
+    best = None
+    for effect in candidates:
+        own = set(OWN_TERMS.get(effect.name, ()))
+        if effect.name in taken or not own & terms or (effect.name == "background_flow"
+                                                        and found.pattern in FLOW_PATTERNS):
+            continue
+        rest = [q for q in form.params if q.name not in own]
+        if not rest:
+            continue
+        reduced = library_effect([_term(q.name) for q in rest], [q.scale for q in rest], name=form.name,
+                                 coefs=[with_form.model.params()[f"{form.name}.{q.name}"] for q in rest])
+        fit, _ = fitter.with_effects(final, [reduced, effect])
+        whole = fitter.entry(form, with_form, True, fit)
+        say(f"in place of its terms: {effect.name} with the form less {', '.join(sorted(own & terms))}: "
+            f"{fit.error(key):.3f} mm; the whole form {with_form.error(key):.3f} mm ({whole['reduction']:+.1%}, "
+            f"t = {whole['t_stat']:.1f})")
+        if not passes(whole, fit.error(key), floor, key) and (best is None or fit.error(key) < best[0]):
+            prm = fit.model.params()
+            best = (fit.error(key), effect.name, ([_term(q.name) for q in rest], np.array([q.scale for q in rest]),
+                                                  np.array([prm[f"{form.name}.{q.name}"] for q in rest])))
+    if best is None:
+        return ()
+    say(f"in place of its terms: {best[1]} takes the place of {', '.join(sorted(terms - {t.name for t in best[2][0]}))}"
+        "; the form without them is refitted")
+    return best[1:]
+
+
+def _term(name: str):
+    from cosim_plugins.diagnose.discover import TERMS
+
+    return next(t for t in TERMS if t.name == name)

@@ -221,12 +221,17 @@ def _verdict(result: DiagnosisResult, key: str) -> Verdict:
 
 def discovered_explains(result: DiagnosisResult, key: str) -> bool:
     """True when the discovered form (``result.discovered``) lowers what the chosen effects leave (or the
-    reference's error) by >= :data:`MIN_REDUCTION` with t >= :data:`MIN_T`, to at most 1 - :data:`DISCOVERED_MARGIN`
-    of it: the verdict then reports it."""
+    reference's error) by >= :data:`MIN_REDUCTION` with t >= :data:`MIN_T`, and it, with the effects named on top of
+    it (``stepwise.given_discovered``), to at most 1 - :data:`DISCOVERED_MARGIN` of it: the verdict then reports
+    it."""
     sw, found = result.stepwise, result.discovered
     left = sw.joint.rollout_mm[key] if sw.steps else result.effects_model.rollout_mm[key]
-    return bool(found is not None and found.status == "found" and left and found.reduction >= MIN_REDUCTION
-                and found.t_stat >= MIN_T and found.rollout_mm[key] <= (1.0 - DISCOVERED_MARGIN) * left)
+    if found is None or found.status != "found" or not left:
+        return False
+    given = sw.given_discovered
+    after = given.joint.rollout_mm[key] if given and given.steps else found.rollout_mm[key]
+    return bool(found.reduction >= MIN_REDUCTION and found.t_stat >= MIN_T
+                and after <= (1.0 - DISCOVERED_MARGIN) * left)
 
 
 def _given_text(result: DiagnosisResult, key: str) -> str:
@@ -281,6 +286,12 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                      f"{result.effects_model.rollout_mm[key]:.2f} to {j.rollout_mm[key]:.2f} mm "
                      f"({j.reduction[key]:.0%}).")
     for d in sw.dropped:
+        if d.given == "discovered" and d.part_of:
+            parts.append(f"{d.effect} was dropped: it is the uniform part of a {d.part_of} flow found without it, "
+                         f"which still lowers the error by {d.form_reduction:.0%} (t = {d.form_t_stat:.1f}) once "
+                         f"{d.effect} is in; a flow that varies with position has its uniform part in it (its value "
+                         "at the tank's origin), so the two are one flow.")
+            continue
         if d.given == "discovered":
             parts.append(f"{d.effect} was dropped: it stands in for a form outside the library. Discovered without "
                          f"it, that form leaves {d.effect} only {d.reduction:.0%} (t = {d.t_stat:.1f}), while it "

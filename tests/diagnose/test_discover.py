@@ -67,14 +67,18 @@ def _form(**coefs):
     return [by_name[k] for k in coefs], coefs, {"Cd1": 0.2, "k": 1.0}
 
 
-@pytest.mark.parametrize("coefs, words", [
-    ({"fx_1": 0.2, "fx_y": -0.01, "fy_x": 0.01}, "turns about a vertical axis through about (+0, +20) mm"),
-    ({"fx_z": 0.006, "fy_z": 0.008}, "grows with height, pointing along (+0.60, +0.80) in (x, y): a shear flow "
-                                     "(about 0.05 mm/s per mm of height)"),
-    ({"fx_x_ux": 0.01}, "the thrust along x changes with x by about +10 % per 10 mm"),
-    ({"fx_1": 0.1, "fy_1": -0.05}, "a steady horizontal push (a drift of the water of about (+0.5, -0.25) mm/s)"),
+@pytest.mark.parametrize("coefs, kind, words", [
+    ({"fx_1": 0.2, "fx_y": -0.01, "fy_x": 0.01}, "swirl", "turns about a vertical axis through about (+0, +20) mm"),
+    ({"fx_1": 0.35, "fy_1": 0.15, "fx_y": -0.01, "fy_x": 0.01}, "swirl", "through about (-15, +35) mm"),
+    ({"fx_z": 0.006, "fy_z": 0.008}, "shear", "grows with height, pointing along (+0.60, +0.80) in (x, y): a shear "
+                                              "flow (about 0.05 mm/s per mm of height)"),
+    ({"fx_x_ux": 0.01}, "thrust", "the thrust along x changes with x by about +10 % per 10 mm"),
+    ({"fx_1": 0.1, "fy_1": -0.05}, "push", "a steady horizontal push (a drift of the water of about (+0.5, -0.25) "
+                                           "mm/s)"),
 ])
-def test_a_form_is_read_as_the_physics_it_looks_like(coefs, words):
+def test_a_form_is_read_as_the_physics_it_looks_like(coefs, kind, words):
+    """A swirl about (x0, y0) is f = r (-(y - y0), x - x0): its constants put the axis where it is."""
     terms, c, host = _form(**coefs)
     reading = D.describe(terms, c, np.ones(len(terms)), host)[-1]
     assert reading.startswith("reading:") and words in reading, reading
+    assert D.pattern(terms, c, host)[0] == kind
