@@ -279,16 +279,18 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                 _drop_stand_ins(result.stepwise, selection, gone)
                 result.fit_notes = fit_notes(result)
                 result.discovered, source, found_fit = discover_on(final)
-        swap = () if found_fit is None else in_place_of_terms(fitter, final, result.discovered, found_fit,
-                                                                candidates, floor[s.reference], s.reference, say)
+        stand_in = {d.effect for d in result.stepwise.dropped if d.given == "discovered"}
+        left = [e for e in candidates if e.name not in stand_in]
+        swap = ()
+        if found_fit is not None and _discovered_passes(result.discovered):
+            swap = in_place_of_terms(fitter, final, result.discovered, found_fit, left, floor[s.reference],
+                                     s.reference, say)
         if swap:
             again = discover_on(final, form=swap[1])
             if again[2] is not None:
                 result.discovered, source, found_fit = again
         if found_fit is not None and (swap or discovered_explains(result, s.reference)):
-            stand_in = {d.effect for d in result.stepwise.dropped if d.given == "discovered"}
-            given = _given_discovered(fitter, found_fit, [e for e in candidates if e.name not in stand_in],
-                                      selection, s, floor, say)
+            given = _given_discovered(fitter, found_fit, left, selection, s, floor, say)
             if given is not None:
                 result.stepwise.given_discovered = stepwise_result(given, s.reference, s.max_effects)
                 groups += [st for st in given.steps if st.is_group]

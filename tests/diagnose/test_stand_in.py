@@ -142,3 +142,44 @@ def test_a_uniform_flow_is_part_of_a_swirl_found_without_it(pattern):
         assert [s.effects[0] for s in selection.steps] == [grad]
     else:
         assert gone == [] and [s.effects[0] for s in selection.steps] == [bg, grad]
+
+
+@pytest.mark.parametrize("beside_drag_mm, swapped", [(0.193, True), (0.5, False)])
+def test_a_listed_effect_takes_the_place_of_its_own_terms_in_the_form(beside_drag_mm, swapped):
+    """A form found as a shear plus |u| u terms (a quadratic drag's own form) is refitted less those terms beside
+    the drag. When the whole form does no better than that (0.188 against 0.193 mm), the drag takes their place and
+    the shear's terms come back with the coefficients fitted beside it; when the whole form is far better (0.188
+    against 0.5 mm), the form stays. A uniform flow is not tried beside a swirl or shear, nor is the lag (no own
+    terms)."""
+    from types import SimpleNamespace as NS
+
+    from cosim_plugins.diagnose import discover as D
+    from cosim_plugins.diagnose.standin import in_place_of_terms
+
+    names = ["fx_z", "fy_z", "fx_1", "fy_1", "fx_spin_ux", "fy_spin_uy"]
+    by_name = {t.name: t for t in D.TERMS}
+    form = D.library_effect([by_name[n] for n in names], [1.0] * 6, coefs=[0.02, -0.01, 0.0, 0.0, -0.04, -0.04])
+    whole = NS(model=NS(effects=[form], params=lambda: {f"discovered.{n}": 0.1 for n in names}),
+               error=lambda k: 0.188)
+    final = NS(model=NS(effects=[]))
+    tried = []
+
+    def with_effects(before, effects):
+        tried.append([e.name for e in effects] + [list(effects[0].terms)])
+        prm = {f"discovered.{n}": 0.5 for n in names}
+        return NS(model=NS(params=lambda: prm), error=lambda k: beside_drag_mm), True
+
+    def entry(effect, after, identifiable, before):
+        red = 1.0 - after.error(KEY) / before.error(KEY)
+        return {"reduction": red, "t_stat": 20.0 * red, "rollout_mm": {KEY: after.error(KEY)}, "identifiable": True}
+
+    candidates = [NS(name=n) for n in ("background_flow", "quadratic_drag", "actuation_lag")]
+    out = in_place_of_terms(NS(with_effects=with_effects, entry=entry), final, NS(pattern="shear"), whole, candidates,
+                            None, KEY, lambda m: None)
+    assert tried == [["discovered", "quadratic_drag", ["fx_z", "fy_z", "fx_1", "fy_1"]]]
+    if swapped:
+        name, (terms, scales, coefs) = out
+        assert name == "quadratic_drag" and [t.name for t in terms] == ["fx_z", "fy_z", "fx_1", "fy_1"]
+        assert list(coefs) == [0.5] * 4 and list(scales) == [1.0] * 4
+    else:
+        assert out == ()
