@@ -68,7 +68,15 @@ from cosim_plugins.diagnose.result import (
 from cosim_plugins.diagnose.standin import OWN_TERMS, in_place_of_terms, stand_ins
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
-from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T, discovered_explains, fit_notes, paired_t, verdict
+from cosim_plugins.diagnose.verdict import (
+    MIN_REDUCTION,
+    MIN_T,
+    discovered_explains,
+    fit_notes,
+    paired_t,
+    passes,
+    verdict,
+)
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import known_effects, load_effect_files, resolve
 from cosim_plugins.identify.joint import JointModel, OpenLoop, supports_effects
@@ -285,10 +293,15 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         if found_fit is not None and _discovered_passes(result.discovered):
             swap = in_place_of_terms(fitter, final, result.discovered, found_fit, left, floor[s.reference],
                                      s.reference, say)
-        if swap:
+        if swap:  # kept when the effect's terms did matter: the whole form passes against the form less them
             again = discover_on(final, form=swap[1])
-            if again[2] is not None:
+            whole = found_fit.model.effects[-1]
+            if again[2] is not None and passes(fitter.entry(whole, found_fit, True, again[2]), again[2].error(
+                    s.reference), floor[s.reference], s.reference):
                 result.discovered, source, found_fit = again
+            else:
+                say(f"in place of its terms: the form less {swap[0]}'s terms does as well alone: the form stays")
+                swap = ()
         if found_fit is not None and (swap or discovered_explains(result, s.reference)):
             given = _given_discovered(fitter, found_fit, left, selection, s, floor, say)
             if given is not None:
