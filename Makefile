@@ -15,10 +15,11 @@ example: $(STAMP)
 	$(PY) examples/dc_motor/build.py
 	$(VENV)/bin/cosim run examples/dc_motor/scenario.yaml --out runs/dc_motor
 
-# The linter (ruff, configured in pyproject.toml), then the suite (the docs' site build included).
+# The linter (ruff, configured in pyproject.toml), then the suite (the docs' site build included; the 15
+# slowest tests listed at the end).
 test: $(STAMP) fmu
 	$(VENV)/bin/ruff check .
-	$(PY) -m pytest -n auto --dist loadscope
+	$(PY) -m pytest -n auto --dist loadscope --durations=15
 
 # The plant FMU, built from the package's C sources into ~/.cache/cosim-swimmer/fmu on first use
 # (a run builds it too); prints its path. COSIM_FMU=FILE runs a prebuilt one instead.

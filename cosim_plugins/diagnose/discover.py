@@ -20,7 +20,10 @@ output-error setting as the effect fits:
    *held-out* windows (the sparsest form that keeps 80 % of the largest drop
    of held-out error), and a drop that is not significant (paired t over
    blocks of windows below the verdict's :data:`MIN_T`) is no form;
-3. the chosen terms become an effect (parameters = coefficients) refitted
+3. a form whose linear terms make a flow varying with position (a swirl or
+   a shear, :func:`pattern`) takes the horizontal constants too: its value
+   at the tank's origin (:data:`FLOW_PATTERNS`);
+4. the chosen terms become an effect (parameters = coefficients) refitted
    jointly with the model; its drop of held-out error is reported with the
    form in words (:func:`describe`) and written as an effect file
    (:func:`effect_source`) that ``--effects-file`` loads and ``--add`` refits.
@@ -244,9 +247,8 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
     uniform = [c for c in cols if TERMS[c].key == "1" and c not in chosen]
     if kind and kind[0] in FLOW_PATTERNS and uniform:  # the flow's uniform part belongs to it
         chosen = sorted(chosen + uniform)
-        pick = [int(np.flatnonzero(cols == c)[0]) for c in chosen]
         xi = np.zeros(n_terms)
-        xi[chosen] = np.linalg.lstsq(Jp[:, cols[pick]], rp, rcond=None)[0]
+        xi[chosen] = np.linalg.lstsq(Jp[:, chosen], rp, rcond=None)[0]
         say(f"discover: a flow varying with position ({kind[0]}): its uniform part, "
             f"{', '.join(TERMS[c].name for c in uniform)}, added to the form")
     return refit_form([TERMS[i] for i in chosen], scales[chosen], xi[chosen], fit_fn,
