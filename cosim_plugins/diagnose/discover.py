@@ -402,9 +402,33 @@ def pattern(terms, coefs: dict, host: dict) -> tuple[str, dict] | None:
 
 #: Patterns of a flow of the water that varies with position. Its uniform part, the flow at the tank's origin,
 #: belongs to it: the origin is an arbitrary point (a swirl about an axis off the origin is a swirl about the
-#: origin plus a uniform flow), so the form takes the horizontal constants too (:func:`discover`) and a library
-#: uniform flow beside it is not a cause of its own (:mod:`.standin`).
+#: origin plus a uniform flow), so the form takes the horizontal constants too (:func:`discover`), and a library
+#: uniform flow beside it is not a cause of its own when the two vanish together inside the tank
+#: (:func:`holds_uniform_part`, :mod:`.standin`).
 FLOW_PATTERNS = ("swirl", "shear")
+
+
+def stagnation(terms, coefs: dict, push_uN=(0.0, 0.0)) -> np.ndarray | None:
+    """(3,) [mm]: the point nearest the origin where the horizontal force of the form's position and constant terms
+    (plus a constant ``push_uN`` (2,), a uniform flow's force) vanishes, or None when the constants cannot be
+    taken up by the position terms (more than a quarter of their size is left wherever the swimmer is)."""
+    M, c = np.zeros((2, 3)), np.array(push_uN, dtype=float)
+    for t in terms:
+        if t.axis < 2 and t.key in ("x", "y", "z"):
+            M[t.axis, "xyz".index(t.key)] = coefs[t.name]
+        elif t.axis < 2 and t.key == "1":
+            c[t.axis] += coefs[t.name]
+    p = np.linalg.lstsq(M, -c, rcond=None)[0]
+    return p if np.linalg.norm(M @ p + c) <= 0.25 * np.linalg.norm(c) else None
+
+
+def holds_uniform_part(terms, coefs: dict, push_uN=(0.0, 0.0)) -> bool:
+    """Whether a flow varying with position (:data:`FLOW_PATTERNS`) holds the constant force (its own constants
+    plus ``push_uN``) as its uniform part: the flow vanishes at a point inside the tank (a swirl's axis, a shear's
+    height of no flow). A constant it cannot take up, or one that puts that point outside the tank, is a uniform
+    flow of its own."""
+    point = stagnation(terms, coefs, push_uN)
+    return point is not None and bool(np.all(np.abs(point) <= WALL_MM))
 
 
 def _reading(terms, coefs: dict, host: dict) -> str | None:

@@ -86,7 +86,8 @@ def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None
             both, _ = fitter.with_effects(selection.final, [form], fresh=False)
             given_form = fitter.entry(effect, both, True, with_form)
             form_given = fitter.entry(form, both, True, selection.final)
-            part_of_flow = effect.name == "background_flow" and found.pattern in FLOW_PATTERNS
+            part_of_flow = (effect.name == "background_flow" and found.pattern in FLOW_PATTERNS
+                            and _uniform_part(both, effect.name, form))
             stands_in = ((part_of_flow or not passes(given_form, with_form.error(key), floor, key))
                          and passes(form_given, selection.final.error(key), floor, key))
             say(f"stand-in: {effect.name} given the form found without it {given_form['reduction']:+.1%} "
@@ -134,7 +135,8 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
     for effect in candidates:
         own = set(OWN_TERMS.get(effect.name, ()))
         if effect.name in taken or not own & terms or (effect.name == "background_flow"
-                                                        and found.pattern in FLOW_PATTERNS):
+                                                        and found.pattern in FLOW_PATTERNS
+                                                        and _uniform_part(with_form, None, form)):
             continue
         rest = [q for q in form.params if q.name not in own]
         if not rest:
@@ -155,6 +157,19 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
     say(f"in place of its terms: {best[1]} takes the place of {', '.join(sorted(terms - {t.name for t in best[2][0]}))}"
         "; the form without them is refitted")
     return best[1:]
+
+
+def _uniform_part(fit, flow: str | None, form) -> bool:
+    """Whether the flow that ``form`` (a swirl or shear) finds in ``fit`` holds its constants, and the uniform flow
+    ``flow``'s force there too (Cd1 w; the drag across the swimmer is small), as its uniform part
+    (:func:`.discover.holds_uniform_part`)."""
+    from cosim_plugins.diagnose.discover import holds_uniform_part
+
+    prm = fit.model.params()
+    push = (np.zeros(2) if flow is None else
+            prm.get("Cd1", 0.0) * np.array([prm[f"{flow}.w_x"], prm[f"{flow}.w_y"]]))
+    return holds_uniform_part([_term(n) for n in form.terms], {n: prm[f"{form.name}.{n}"] for n in form.terms},
+                              push)
 
 
 def _term(name: str):

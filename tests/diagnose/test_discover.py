@@ -82,3 +82,18 @@ def test_a_form_is_read_as_the_physics_it_looks_like(coefs, kind, words):
     reading = D.describe(terms, c, np.ones(len(terms)), host)[-1]
     assert reading.startswith("reading:") and words in reading, reading
     assert D.pattern(terms, c, host)[0] == kind
+
+
+@pytest.mark.parametrize("coefs, push, point, inside", [
+    ({"fx_1": 0.35, "fy_1": 0.15, "fx_y": -0.01, "fy_x": 0.01}, (0.0, 0.0), (-15.0, 35.0, 0.0), True),
+    ({"fx_y": -0.01, "fy_x": 0.01}, (1.0, 0.0), (0.0, 100.0, 0.0), False),  # the axis beyond the wall at 75 mm
+    ({"fx_z": 0.006, "fy_z": 0.008}, (-0.06, -0.08), (0.0, 0.0, 10.0), True),  # a shear, no flow at z = 10 mm
+    ({"fx_z": 0.006, "fy_z": 0.008}, (0.08, -0.06), None, False),  # a push across the shear: a flow of its own
+])
+def test_a_flow_holds_its_uniform_part_when_it_vanishes_inside_the_tank(coefs, push, point, inside):
+    terms, c, _ = _form(**coefs)
+    found = D.stagnation(terms, c, push)
+    assert (found is None) == (point is None)
+    if point is not None:
+        assert found == pytest.approx(point, abs=1e-9)
+    assert D.holds_uniform_part(terms, c, push) == inside
