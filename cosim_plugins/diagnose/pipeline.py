@@ -300,7 +300,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                     s.reference), floor[s.reference], s.reference):
                 result.discovered, source, found_fit = again
             else:
-                say(f"in place of its terms: the form less {swap[0]}'s terms does as well alone: the form stays")
+                say(f"in place of its terms: {swap[0]}'s terms add too little to the form less them: the form stays")
                 swap = ()
         if found_fit is not None and (swap or discovered_explains(result, s.reference)):
             given = _given_discovered(fitter, found_fit, left, selection, s, floor, say)
