@@ -388,7 +388,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s57", "seed 57 (stand-ins dropped)"),
                  ("blind_groups_s59", "seed 59 (the full fit when no quick fit passes the screen)"),
                  ("blind_groups_s61", "seed 61 (trimmed t, candidates refitted after round 1)"),
-                 ("blind_groups_s63", "seed 63 (full fit after a quick fit that changes nothing)"))
+                 ("blind_groups_s63", "seed 63 (full fit after a quick fit that changes nothing)"),
+                 ("blind_groups_s65", "seed 65 (multi only: a flow's uniform part, the search on top of the form "
+                                      "keeping it, a listed effect in place of its terms; 75f2e92)"))
 
 
 def several_effects_table() -> str:

@@ -411,7 +411,8 @@ FLOW_PATTERNS = ("swirl", "shear")
 def stagnation(terms, coefs: dict, push_uN=(0.0, 0.0)) -> np.ndarray | None:
     """(3,) [mm]: the point nearest the origin where the horizontal force of the form's position and constant terms
     (plus a constant ``push_uN`` (2,), a uniform flow's force) vanishes, or None when the constants cannot be
-    taken up by the position terms (more than a quarter of their size is left wherever the swimmer is)."""
+    taken up by the position terms: what is left of them wherever the swimmer is exceeds both a quarter of their
+    size and a tenth of the position terms' force at the walls (a constant too small to matter is taken up)."""
     M, c = np.zeros((2, 3)), np.array(push_uN, dtype=float)
     for t in terms:
         if t.axis < 2 and t.key in ("x", "y", "z"):
@@ -419,7 +420,8 @@ def stagnation(terms, coefs: dict, push_uN=(0.0, 0.0)) -> np.ndarray | None:
         elif t.axis < 2 and t.key == "1":
             c[t.axis] += coefs[t.name]
     p = np.linalg.lstsq(M, -c, rcond=None)[0]
-    return p if np.linalg.norm(M @ p + c) <= 0.25 * np.linalg.norm(c) else None
+    left = np.linalg.norm(M @ p + c)
+    return p if left <= max(0.25 * np.linalg.norm(c), 0.1 * np.linalg.norm(M, 2) * WALL_MM) else None
 
 
 def holds_uniform_part(terms, coefs: dict, push_uN=(0.0, 0.0)) -> bool:

@@ -42,6 +42,8 @@ names the effect if it passes the gates there.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from cosim_plugins.diagnose.discover import FLOW_PATTERNS
@@ -141,9 +143,14 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
         rest = [q for q in form.params if q.name not in own]
         if not rest:
             continue
+        prm = with_form.model.params()
         reduced = library_effect([_term(q.name) for q in rest], [q.scale for q in rest], name=form.name,
-                                 coefs=[with_form.model.params()[f"{form.name}.{q.name}"] for q in rest])
-        fit, _ = fitter.with_effects(final, [reduced, effect])
+                                 coefs=[prm[f"{form.name}.{q.name}"] for q in rest])
+        gone = [q.name for q in form.params if q.name in own]
+        start = matched_start(effect, fitter.ttr, [_term(n) for n in gone], [prm[f"{form.name}.{n}"] for n in gone],
+                              {k: v for k, v in prm.items() if "." not in k})
+        fit, _ = fitter.with_effects(final, [reduced, replace(effect, starts=(start, *effect.starts)) if start
+                                             else effect])
         whole = fitter.entry(form, with_form, True, fit)
         say(f"in place of its terms: {effect.name} with the form less {', '.join(sorted(own & terms))}: "
             f"{fit.error(key):.3f} mm; the whole form {with_form.error(key):.3f} mm ({whole['reduction']:+.1%}, "
@@ -157,6 +164,37 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
     say(f"in place of its terms: {best[1]} takes the place of {', '.join(sorted(terms - {t.name for t in best[2][0]}))}"
         "; the form without them is refitted")
     return best[1:]
+
+
+def matched_start(effect, tl, terms, coefs, host: dict, rows: int = 2000) -> dict:
+    """{param: value}: ``effect``'s parameters whose force best matches, in least squares over ``rows`` rows of the
+    timeline ``tl`` spread over it, the force of the discovered ``terms`` with coefficients ``coefs`` that the
+    effect is to replace, from each of its starts (the host's parameters ``host`` held). The joint fit's own starts
+    may lie far from the law's values (a wall drag of 1.3 uN s/mm against its start at 0.05)."""
+    from scipy.optimize import least_squares
+
+    from cosim_plugins.diagnose.discover import term_force
+
+    at = np.unique(np.linspace(0, tl.n - 1, min(rows, tl.n)).astype(int))
+    x, u = tl.x_lin[at], tl.u[at]
+    ok = np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(u), axis=1)
+    p, v, u = x[ok, :3], x[ok, 3:], u[ok]
+    target = term_force(terms, coefs, p, v, u)
+    names = [q.name for q in effect.params]
+    lo, hi = np.array([q.lo for q in effect.params]), np.array([q.hi for q in effect.params])
+
+    def misfit(theta):
+        return (effect.force(p, v, u, {**host, **dict(zip(names, theta))}) - target).ravel()
+
+    best = None
+    for st in ({q.name: q.init for q in effect.params}, *effect.starts):
+        x0 = np.clip([st.get(n, q.init) for n, q in zip(names, effect.params)], lo, hi)
+        with np.errstate(all="ignore"):
+            res = least_squares(misfit, x0, bounds=(lo, hi), x_scale=[q.typical() for q in effect.params],
+                                max_nfev=60)
+        if np.isfinite(res.cost) and (best is None or res.cost < best.cost):
+            best = res
+    return {} if best is None else {n: float(t) for n, t in zip(names, best.x)}
 
 
 def _uniform_part(fit, flow: str | None, form) -> bool:

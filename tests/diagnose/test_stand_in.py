@@ -15,6 +15,7 @@ import re
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cosim.contract import plugins
@@ -179,9 +180,13 @@ def test_a_listed_effect_takes_the_place_of_its_own_terms_in_the_form(beside_dra
         red = 1.0 - after.error(KEY) / before.error(KEY)
         return {"reduction": red, "t_stat": 20.0 * red, "rollout_mm": {KEY: after.error(KEY)}, "identifiable": True}
 
-    candidates = [NS(name=n) for n in ("background_flow", "quadratic_drag", "actuation_lag")]
-    out = in_place_of_terms(NS(with_effects=with_effects, entry=entry), final, NS(pattern="shear"), whole, candidates,
-                            None, KEY, lambda m: None)
+    from cosim_plugins.effects.forces import BACKGROUND_FLOW, QUADRATIC_DRAG
+    from cosim_plugins.effects.transforms import ACTUATION_LAG
+
+    rng = np.random.default_rng(1)
+    tl = NS(n=200, x_lin=rng.normal(0.0, 20.0, (200, 6)), u=rng.normal(0.0, 8.0, (200, 3)))
+    out = in_place_of_terms(NS(with_effects=with_effects, entry=entry, ttr=tl), final, NS(pattern="shear"), whole,
+                            [BACKGROUND_FLOW, QUADRATIC_DRAG, ACTUATION_LAG], None, KEY, lambda m: None)
     assert tried == [["discovered", "quadratic_drag", ["fx_z", "fy_z", "fx_1", "fy_1"]]]
     if swapped:
         name, (terms, scales, coefs) = out
@@ -189,3 +194,21 @@ def test_a_listed_effect_takes_the_place_of_its_own_terms_in_the_form(beside_dra
         assert list(coefs) == [0.5] * 4 and list(scales) == [1.0] * 4
     else:
         assert out == ()
+
+
+def test_a_listed_effects_start_matches_the_force_of_the_terms_it_replaces():
+    """The quadratic drag's start, fitted to the force of the |v| v terms it is to replace (-0.004 |v| v along each
+    axis), is c = 0.004, though its listed starts are 1e-3, 4e-3 and 1.6e-2 and its initial value 0."""
+    from types import SimpleNamespace as NS
+
+    from cosim_plugins.diagnose import discover as D
+    from cosim_plugins.diagnose.standin import matched_start
+    from cosim_plugins.effects.forces import QUADRATIC_DRAG
+
+    rng = np.random.default_rng(2)
+    tl = NS(n=300, x_lin=rng.normal(0.0, 20.0, (300, 6)), u=rng.normal(0.0, 8.0, (300, 3)))
+    tl.x_lin[5] = np.nan  # a lost frame
+    by_name = {t.name: t for t in D.TERMS}
+    terms = [by_name[f"f{c}_speed_v{c}"] for c in "xyz"]
+    start = matched_start(QUADRATIC_DRAG, tl, terms, [-0.0037] * 3, {"Cd1": 0.2})
+    assert start == {"c": pytest.approx(0.0037, rel=1e-6)}
