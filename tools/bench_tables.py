@@ -390,7 +390,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s61", "seed 61 (trimmed t, candidates refitted after round 1)"),
                  ("blind_groups_s63", "seed 63 (full fit after a quick fit that changes nothing)"),
                  ("blind_groups_s65", "seed 65 (multi only: a flow's uniform part, the search on top of the form "
-                                      "keeping it, a listed effect in place of its terms; 75f2e92)"))
+                                      "keeping it, a listed effect in place of its terms; 75f2e92)"),
+                 ("blind_groups_s67", "seed 67 (a flow's uniform part only when it vanishes inside the tank)"))
 
 
 def several_effects_table() -> str:
