@@ -391,7 +391,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s63", "seed 63 (full fit after a quick fit that changes nothing)"),
                  ("blind_groups_s65", "seed 65 (multi only: a flow's uniform part, the search on top of the form "
                                       "keeping it, a listed effect in place of its terms; 75f2e92)"),
-                 ("blind_groups_s67", "seed 67 (a flow's uniform part only when it vanishes inside the tank)"))
+                 ("blind_groups_s67", "seed 67 (a flow's uniform part only when it vanishes inside the tank)"),
+                 ("blind_groups_s69", "seed 69 (a listed effect's start matched to the force of the terms it "
+                                      "replaces)"))
 
 
 def several_effects_table() -> str:
