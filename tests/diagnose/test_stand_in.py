@@ -54,6 +54,20 @@ def test_a_uniform_flow_standing_in_for_a_turning_one_is_dropped(tmp_path):
                                                                                                       abs=3)
 
 
+def _entry(effect, after, identifiable, before):
+    """A table fitter's rank entry: the drop of ``after``'s error against ``before``'s, t = 20 x the drop."""
+    red = 1.0 - after.error(KEY) / before.error(KEY)
+    return {"reduction": red, "t_stat": 20.0 * red, "rollout_mm": {KEY: after.error(KEY)}, "identifiable": True}
+
+
+def _table_fitter(fit):
+    """A fitter whose models are ``fit(names)``: taking effects out or adding them only changes the set."""
+    from types import SimpleNamespace as NS
+
+    return NS(without=lambda final, keep: fit({e.name for e in keep}),
+              with_effects=lambda before, new, fresh: (fit(before.names | {e.name for e in new}), True), entry=_entry)
+
+
 def test_the_check_drops_the_stand_in_and_keeps_the_force_that_adds_to_the_form():
     """A fitter whose models' errors are a table over their sets of effects. A uniform flow and a gradient force
     are chosen over a flow outside the library. Discovered without the flow, the form (D1) takes its place (the
@@ -85,13 +99,7 @@ def test_the_check_drops_the_stand_in_and_keeps_the_force_that_adds_to_the_form(
         with_form.model.effects.append(effects[form])  # the discovered form comes last
         return NS(terms=[f"{form}_terms"], pattern=None), None, with_form
 
-    def entry(effect, after, identifiable, before):
-        red = 1.0 - after.error(KEY) / before.error(KEY)
-        return {"reduction": red, "t_stat": 20.0 * red, "rollout_mm": {KEY: after.error(KEY)}, "identifiable": True}
-
-    fitter = NS(without=lambda final, keep: fit({e.name for e in keep}),
-                with_effects=lambda before, new, fresh: (fit(before.names | {e.name for e in new}), True),
-                entry=entry)
+    fitter = _table_fitter(fit)
     selection = NS(steps=[NS(effects=[n], is_group=False) for n in (bg, grad, lag)], final=fit({bg, grad, lag}))
     gone = stand_ins(fitter, selection, effects, discover_on, None, KEY, lambda m: None)
     assert [d.effect for d in gone] == [bg]
@@ -134,13 +142,7 @@ def test_a_uniform_flow_is_part_of_a_swirl_found_without_it(pattern, w_x, droppe
         with_form.model.effects.append(effects[form])
         return NS(terms=[f"{form}_terms"], pattern=pattern if form == "D1" else "gradient"), None, with_form
 
-    def entry(effect, after, identifiable, before):
-        red = 1.0 - after.error(KEY) / before.error(KEY)
-        return {"reduction": red, "t_stat": 20.0 * red, "rollout_mm": {KEY: after.error(KEY)}, "identifiable": True}
-
-    fitter = NS(without=lambda final, keep: fit({e.name for e in keep}),
-                with_effects=lambda before, new, fresh: (fit(before.names | {e.name for e in new}), True),
-                entry=entry)
+    fitter = _table_fitter(fit)
     selection = NS(steps=[NS(effects=[n], is_group=False) for n in (bg, grad)], final=fit({bg, grad}))
     gone = stand_ins(fitter, selection, effects, discover_on, None, KEY, lambda m: None)
     if dropped:
@@ -176,16 +178,12 @@ def test_a_listed_effect_takes_the_place_of_its_own_terms_in_the_form(beside_dra
         prm = {f"discovered.{n}": 0.5 for n in names}
         return NS(model=NS(params=lambda: prm), error=lambda k: beside_drag_mm), True
 
-    def entry(effect, after, identifiable, before):
-        red = 1.0 - after.error(KEY) / before.error(KEY)
-        return {"reduction": red, "t_stat": 20.0 * red, "rollout_mm": {KEY: after.error(KEY)}, "identifiable": True}
-
     from cosim_plugins.effects.forces import BACKGROUND_FLOW, QUADRATIC_DRAG
     from cosim_plugins.effects.transforms import ACTUATION_LAG
 
     rng = np.random.default_rng(1)
     tl = NS(n=200, x_lin=rng.normal(0.0, 20.0, (200, 6)), u=rng.normal(0.0, 8.0, (200, 3)))
-    out = in_place_of_terms(NS(with_effects=with_effects, entry=entry, ttr=tl), final, NS(pattern="shear"), whole,
+    out = in_place_of_terms(NS(with_effects=with_effects, entry=_entry, ttr=tl), final, NS(pattern="shear"), whole,
                             [BACKGROUND_FLOW, QUADRATIC_DRAG, ACTUATION_LAG], None, KEY, lambda m: None)
     assert tried == [["discovered", "quadratic_drag", ["fx_z", "fy_z", "fx_1", "fy_1"]]]
     if swapped:
