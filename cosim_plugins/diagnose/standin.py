@@ -18,7 +18,8 @@ and D are refitted together with the others; E is a stand-in when
   express.
 
 A uniform flow that is really there fails the first test, unless D is a flow
-that varies with position (a swirl or a shear, :data:`.discover.FLOW_PATTERNS`):
+that varies with position (a swirl or a shear, :data:`.discover.FLOW_PATTERNS`)
+and the two vanish together inside the tank (:func:`.discover.holds_uniform_part`):
 then the uniform flow is a stand-in when D passes given it, whatever it adds
 given D. The uniform part of such a flow is its value at the tank's origin, an
 arbitrary point: a swirl about an axis off the origin is a swirl about the
@@ -46,7 +47,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from cosim_plugins.diagnose.discover import FLOW_PATTERNS
+from cosim_plugins.diagnose.discover import FLOW_PATTERNS, TERMS, holds_uniform_part, library_effect, term_force
 from cosim_plugins.diagnose.result import Dropped
 from cosim_plugins.diagnose.verdict import passes
 
@@ -120,16 +121,14 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
     Discovery on what ``final`` leaves may take up a library effect the search did not name beside the form
     outside the library: a quadratic drag beside a shear flow, found as |u| u terms next to the shear's. For each
     such candidate E (of ``candidates``, not in ``final``), the form less E's own terms is refitted with E (E's
-    starts spread as in the search); when the whole form (``with_form``: ``final`` plus it) does not pass the
-    verdict's gates against that model, E's one law does what its terms did: the form less them (its
+    starts as in the search, and :func:`matched_start`); when the whole form (``with_form``: ``final`` plus it)
+    does not pass the verdict's gates against that model, E's one law does what its terms did: the form less them (its
     coefficients as fitted beside E) replaces the form, and the search given the form then judges E. (Found again
     by the regression without E's terms, the form is poorer: linearised on a model without E, the regression
-    picks other terms.) A uniform flow beside a flow that varies with position is not tried: its constants
-    belong to that flow (:data:`.discover.FLOW_PATTERNS`); nor is a candidate whose own terms are the whole
+    picks other terms.) A uniform flow is not tried when the form is a swirl or shear that holds its constants
+    as its uniform part (:func:`.discover.holds_uniform_part`); nor is a candidate whose own terms are the whole
     form. The candidate whose model errs least wins.
     """
-    from cosim_plugins.diagnose.discover import library_effect
-
     form = with_form.model.effects[-1]
     terms = set(form.terms or ())
     taken = {e.name for e in final.model.effects}
@@ -173,8 +172,6 @@ def matched_start(effect, tl, terms, coefs, host: dict, rows: int = 2000) -> dic
     may lie far from the law's values (a wall drag of 1.3 uN s/mm against its start at 0.05)."""
     from scipy.optimize import least_squares
 
-    from cosim_plugins.diagnose.discover import term_force
-
     at = np.unique(np.linspace(0, tl.n - 1, min(rows, tl.n)).astype(int))
     x, u = tl.x_lin[at], tl.u[at]
     ok = np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(u), axis=1)
@@ -201,8 +198,6 @@ def _uniform_part(fit, flow: str | None, form) -> bool:
     """Whether the flow that ``form`` (a swirl or shear) finds in ``fit`` holds its constants, and the uniform flow
     ``flow``'s force there too (Cd1 w; the drag across the swimmer is small), as its uniform part
     (:func:`.discover.holds_uniform_part`)."""
-    from cosim_plugins.diagnose.discover import holds_uniform_part
-
     prm = fit.model.params()
     push = (np.zeros(2) if flow is None else
             prm.get("Cd1", 0.0) * np.array([prm[f"{flow}.w_x"], prm[f"{flow}.w_y"]]))
@@ -211,6 +206,4 @@ def _uniform_part(fit, flow: str | None, form) -> bool:
 
 
 def _term(name: str):
-    from cosim_plugins.diagnose.discover import TERMS
-
     return next(t for t in TERMS if t.name == name)
