@@ -311,7 +311,8 @@ def test_a_discovered_form_explains_the_error_and_what_named_effects_leave():
 def test_an_effect_named_given_the_discovered_form_joins_the_named_set():
     """A library effect beside an outside one: named once the discovered form is in (the stepwise search run
     again on top of it), after the effects of the first search, in the verdict's words and set."""
-    given = {"steps": [step("actuation_lag", 0.5, 0.25, t=7.5)]}
+    given = {"steps": [step("actuation_lag", 0.5, 0.25, t=7.5)],
+             "joint": {"effects": ["actuation_lag"], "rollout_mm": {K: 0.25}, "reduction": {K: 0.5}}}
     r = result(1.0, 0.2, ranking=[cand("wall_drag", 0.05, 1.0)], discovered=found(0.5))
     r["stepwise"]["given_discovered"] = given
     v = verdict(r, K)
@@ -321,11 +322,20 @@ def test_an_effect_named_given_the_discovered_form_joins_the_named_set():
         "the held-out error at 1.0 s falls from 0.50 to 0.25 mm (50%; t = 7.5; 83% of the excess over the noise "
         "floor). Fitted: k = 2.00 ± 0.10 mm/s.")
     r = result(2.0, 0.2, steps=[step("wall_drag", 2.0, 1.0)], joint_left=1.0, discovered=found(0.5))
-    r["stepwise"]["given_discovered"] = {"steps": [step("heading_lag", 0.5, 0.3, group=("actuation_lag",))]}
+    r["stepwise"]["given_discovered"] = {"steps": [step("heading_lag", 0.5, 0.3, group=("actuation_lag",))],
+                                         "joint": {"effects": [], "rollout_mm": {K: 0.3}, "reduction": {K: 0.4}}}
     v = verdict(r, K)
     assert v["effects"] == ["wall_drag"] and v["lookalikes"] == [["heading_lag", "actuation_lag"]]
     assert "Given the discovered form, heading_lag or actuation_lag explain part of what is left about equally " \
            "well" in v["explanation"]
+    # a form short of the 30 % margin alone (0.8 of 1.0 mm) is reported with the effect named on top of it (0.25)
+    r = result(1.0, 0.2, discovered=found(0.8, reduction=0.2))
+    assert verdict(r, K)["status"] == "unexplained"
+    r["stepwise"]["given_discovered"] = {"steps": [step("quadratic_drag", 0.8, 0.25, t=9.0)],
+                                         "joint": {"effects": ["quadratic_drag"], "rollout_mm": {K: 0.25},
+                                                   "reduction": {K: 0.69}}}
+    v = verdict(r, K)
+    assert v["status"] == "discovered" and v["effects"] == ["quadratic_drag"]
 
 
 # --- drift --------------------------------------------------------------------------------------------------------
