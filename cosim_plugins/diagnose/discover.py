@@ -365,15 +365,10 @@ def describe(terms, coefs: dict, scales, host_params: dict) -> list[str]:
     return lines
 
 
-def pattern(terms, coefs: dict, host: dict) -> tuple[str, dict] | None:
-    """(kind, figures) of the strongest linear-in-position, constant and command terms, or None: "swirl" (the
-    horizontal force turns about a vertical axis: ``rot`` uN/mm, ``centre`` (x, y) mm), "thrust" (the thrust
-    changes with position: ``along``, ``with`` axes, ``per_10mm`` share), "shear" (a horizontal force growing
-    with height: ``g`` (2,) uN/mm), "gradient" (curl-free, linear in position) or "push" (a constant: ``c0``
-    (2,) uN). ``coefs``: term name -> coefficient [uN per the term's unit]; ``host``: the host's parameters."""
-    M = np.zeros((3, 3))
-    c0 = np.zeros(3)
-    G = np.zeros((3, 3))
+def _linear_parts(terms, coefs: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(M (3, 3) uN/mm, c0 (3,) uN, G (3, 3) uN/(mm Hz)): the form's force linear in position (f_a ~ M[a, b] p_b),
+    its constants, and its position x command terms along the command's own axis (f_a ~ G[a, b] p_b u_a)."""
+    M, c0, G = np.zeros((3, 3)), np.zeros(3), np.zeros((3, 3))
     for t in terms:
         if t.key in ("x", "y", "z"):
             M[t.axis, "xyz".index(t.key)] = coefs[t.name]
@@ -381,6 +376,16 @@ def pattern(terms, coefs: dict, host: dict) -> tuple[str, dict] | None:
             c0[t.axis] = coefs[t.name]
         elif t.key.endswith(f"_u{AXES[t.axis]}") and t.key[0] in "xyz":
             G[t.axis, "xyz".index(t.key[0])] = coefs[t.name]
+    return M, c0, G
+
+
+def pattern(terms, coefs: dict, host: dict) -> tuple[str, dict] | None:
+    """(kind, figures) of the strongest linear-in-position, constant and command terms, or None: "swirl" (the
+    horizontal force turns about a vertical axis: ``rot`` uN/mm, ``centre`` (x, y) mm), "thrust" (the thrust
+    changes with position: ``along``, ``with`` axes, ``per_10mm`` share), "shear" (a horizontal force growing
+    with height: ``g`` (2,) uN/mm), "gradient" (curl-free, linear in position) or "push" (a constant: ``c0``
+    (2,) uN). ``coefs``: term name -> coefficient [uN per the term's unit]; ``host``: the host's parameters."""
+    M, c0, G = _linear_parts(terms, coefs)
     k = host.get("k", 0.0)
     A = 0.5 * (M - M.T)
     S = 0.5 * (M + M.T)
@@ -413,12 +418,8 @@ def stagnation(terms, coefs: dict, push_uN=(0.0, 0.0)) -> np.ndarray | None:
     (plus a constant ``push_uN`` (2,), a uniform flow's force) vanishes, or None when the constants cannot be
     taken up by the position terms: what is left of them wherever the swimmer is exceeds both a quarter of their
     size and a tenth of the position terms' force at the walls (a constant too small to matter is taken up)."""
-    M, c = np.zeros((2, 3)), np.array(push_uN, dtype=float)
-    for t in terms:
-        if t.axis < 2 and t.key in ("x", "y", "z"):
-            M[t.axis, "xyz".index(t.key)] = coefs[t.name]
-        elif t.axis < 2 and t.key == "1":
-            c[t.axis] += coefs[t.name]
+    M, c0, _ = _linear_parts(terms, coefs)
+    M, c = M[:2], c0[:2] + np.asarray(push_uN, dtype=float)
     p = np.linalg.lstsq(M, -c, rcond=None)[0]
     left = np.linalg.norm(M @ p + c)
     return p if left <= max(0.25 * np.linalg.norm(c), 0.1 * np.linalg.norm(M, 2) * WALL_MM) else None

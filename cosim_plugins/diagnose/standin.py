@@ -132,6 +132,7 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
     form = with_form.model.effects[-1]
     terms = set(form.terms or ())
     taken = {e.name for e in final.model.effects}
+    prm = with_form.model.params()
     best = None
     for effect in candidates:
         own = set(OWN_TERMS.get(effect.name, ()))
@@ -142,7 +143,6 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
         rest = [q for q in form.params if q.name not in own]
         if not rest:
             continue
-        prm = with_form.model.params()
         reduced = library_effect([_term(q.name) for q in rest], [q.scale for q in rest], name=form.name,
                                  coefs=[prm[f"{form.name}.{q.name}"] for q in rest])
         gone = [q.name for q in form.params if q.name in own]
@@ -155,9 +155,9 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
             f"{fit.error(key):.3f} mm; the whole form {with_form.error(key):.3f} mm ({whole['reduction']:+.1%}, "
             f"t = {whole['t_stat']:.1f})")
         if not passes(whole, fit.error(key), floor, key) and (best is None or fit.error(key) < best[0]):
-            prm = fit.model.params()
+            beside = fit.model.params()
             best = (fit.error(key), effect.name, ([_term(q.name) for q in rest], np.array([q.scale for q in rest]),
-                                                  np.array([prm[f"{form.name}.{q.name}"] for q in rest])))
+                                                  np.array([beside[f"{form.name}.{q.name}"] for q in rest])))
     if best is None:
         return ()
     say(f"in place of its terms: {best[1]} takes the place of {', '.join(sorted(terms - {t.name for t in best[2][0]}))}"
