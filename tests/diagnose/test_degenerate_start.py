@@ -1,4 +1,6 @@
-"""A step-out inside the band that leaves the baseline degenerate: the candidate's fit must not inherit it.
+"""Step-out fits the baseline can mislead: a degenerate baseline, and a step-out just below the band's top.
+
+First case: a step-out inside the band that leaves the baseline degenerate: the candidate's fit must not inherit it.
 
 Logs of the independent simulator (``benchmarks/blind_sim.py``: the seed-48 blind bench's multi_007, a step-out at
 8.4 Hz in a 1.7-15.5 Hz band, a 31 ms velocity response, and a quadratic drag too small to matter alone): the
@@ -34,3 +36,17 @@ def test_a_step_out_is_fitted_from_a_degenerate_baseline(tmp_path):
     added = diag["added"]
     assert added["params"]["step_out.f_so"]["value"] == pytest.approx(8.417, rel=0.03)
     assert added["reduction"]["1.0"] > 0.25  # the true form refitted: 38 %
+
+
+def test_a_step_out_near_the_top_of_the_band_is_found(tmp_path):
+    """The seed-64 blind bench's case 7: a step-out at 15.5 Hz in a 4.2-17.3 Hz band (only the fastest commands
+    slip) lowers the held-out error by 86 % in its true form; the library's step-out must find it too."""
+    case = blind_sim.draw_case(897917036, "library", "step_out", index=7)
+    assert case.truth["f_so_hz"] == pytest.approx(15.534, abs=0.001)
+    logs = blind_sim.simulate(case, tmp_path / "logs")
+    plugins.reset()
+    diag = run(logs, settings=Settings(candidates=["step_out"], drift=False, max_effects=1)).json
+    top = diag["ranking"][0]
+    assert top["effect"] == "step_out" and top["reduction"] > 0.7  # 86 %
+    assert top["params"]["step_out.f_so"]["value"] == pytest.approx(15.53, rel=0.03)
+    assert diag["verdict"]["effects"] == ["step_out"]
