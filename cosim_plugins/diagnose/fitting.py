@@ -16,7 +16,7 @@ import numpy as np
 
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose.stepwise import Fit
-from cosim_plugins.diagnose.verdict import gain_t, paired_t, paired_t_horizons
+from cosim_plugins.diagnose.verdict import blocks_t, gain_block_means, paired_t, paired_t_horizons
 from cosim_plugins.identify.joint import JointModel, fit_joint, supports_effects
 
 QUICK_NFEV = 6  # evaluations of a screening fit (stepwise rounds after the first, see stepwise.rank)
@@ -44,6 +44,7 @@ class Fitter:
         self.s, self.added, self.ttr, self.fit_starts, self.fit_len = s, list(added), ttr, fit_starts, fit_len
         self.score, self.polish = score, polish
         self.tte, self.test_starts, self.lead, self.steps, self.block_rows = tte, test_starts, lead, steps, block_rows
+        self.folds = None  # the split's other folds (:class:`.crossfold.CrossFolds`), when it has any
 
     def evaluate(self, jm) -> Fit:
         """The model's held-out open-loop errors at every horizon."""
@@ -106,8 +107,9 @@ class Fitter:
         return paired_t_horizons(ref.ev, new.ev, self.test_starts, self.block_rows)
 
     def entry(self, effect, fit: Fit, identifiable: bool, before: Fit) -> dict:
-        """A candidate's rank entry: its errors, reductions and t of its gain over ``before`` (:func:`gain_t`); its
-        parameters."""
+        """A candidate's rank entry: its errors, reductions and t of its gain over ``before`` (:func:`gain_t`; on
+        every fold of the split when this fold's alone is borderline, :mod:`.crossfold`: ``t_folds`` says how
+        many folds); its parameters."""
         key = self.s.reference
         red = {h: reduction_of(before.summary["rollout_mm"][h], fit.summary["rollout_mm"][h])
                for h in fit.summary["rollout_mm"]}
@@ -117,12 +119,16 @@ class Fitter:
         std = {n: (float(jm.std[n]) if np.isfinite(jm.std.get(n, np.nan)) else None) for n in own}
         params = {n: {"value": jm.params()[n], "std": std[n], "unit": units[n]} for n in own}
         fitted = getattr(fit, "fitted", None)
-        return {"effect": effect.name, "kind": effect.kind, "rollout_mm": fit.summary["rollout_mm"],
-                "reduction": red[key], "reduction_by_horizon": red,
-                "t_stat": gain_t(before.ev[key], fit.ev[key], self.test_starts, self.block_rows),
-                "identifiable": identifiable,
-                "params": params, "fit": fitted.fit if fitted else {}, "conditioning": jm.conditioning,
-                "doc": effect.doc}
+        means = gain_block_means(before.ev[key], fit.ev[key], self.test_starts, self.block_rows)
+        out = {"effect": effect.name, "kind": effect.kind, "rollout_mm": fit.summary["rollout_mm"],
+               "reduction": red[key], "reduction_by_horizon": red, "t_stat": blocks_t(means),
+               "identifiable": identifiable,
+               "params": params, "fit": fitted.fit if fitted else {}, "conditioning": jm.conditioning,
+               "doc": effect.doc}
+        if (self.folds is not None and self.folds.wanted(out) and jm.per_unit is None
+                and before.model.per_unit is None):
+            out["t_stat"], out["t_folds"] = self.folds.t_stat(means, before, fit, key)
+        return out
 
 
 def bar(items, what: str, total: int | None = None):

@@ -42,6 +42,7 @@ from threadpoolctl import threadpool_limits
 
 from cosim.contract.errors import UserError
 from cosim_plugins.diagnose import drift
+from cosim_plugins.diagnose.crossfold import CrossFolds
 from cosim_plugins.diagnose.experiment import Experiment, design_experiment
 from cosim_plugins.diagnose.fitting import Fitter, bar, degenerate, fit_model, reduction_of, velocity_time_constant
 from cosim_plugins.diagnose.localise import localise, window_features
@@ -188,10 +189,20 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     steps = {h: max(1, int(round(v / dt))) for h, v in s.horizons.items()}
     fit_len = max(4, int(round(FIT_WINDOW_S / dt)))
     frac = float(np.mean(tall.measured))  # sparse camera frames: ask for a share of what the logs have
-    fit_starts = sample_starts(ttr.window_starts(fit_len, 0.7 * frac), s.fit_windows, s.seed)
-    test_starts = evenly(open_loop_starts(tte, lead, frac), MAX_EVAL_WINDOWS)
+    block_rows = max(1, int(round(VERDICT_BLOCK_S / dt)))
+
+    def fold_fitter(ttr, tte) -> Fitter:
+        return _fitter(s, added, ttr, tte, lead, steps, fit_len, frac, block_rows)
+
+    fitter = fold_fitter(ttr, tte)
+    fit_starts, test_starts, score, polish = fitter.fit_starts, fitter.test_starts, fitter.score, fitter.polish
+    if split.kind == "time_blocks":  # a borderline gain is tested on the other folds too (see .crossfold)
+        def other_fold(k: int) -> Fitter:
+            tr, te, _ = split_logs(logs, held_block=k)
+            return fold_fitter(*(Timeline.from_dataset(Dataset.from_logs(x)) for x in (tr, te)))
+
+        fitter.folds = CrossFolds(other_fold, HOLDOUT_EVERY - 1)
     all_starts = evenly(open_loop_starts(tall, lead, frac), MAX_LOCALISE_WINDOWS)
-    _check_sizes(fit_starts, fit_len, test_starts, tte, lead, steps[s.reference], dt)
     sigma = noise_sigma_mm(tall)
     if not np.all(np.isfinite(sigma)):
         say("noise: too few runs of consecutive measurements to estimate the camera noise; no noise floor")
@@ -199,20 +210,8 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
     say(f"noise: sigma = {', '.join(f'{x:.3f}' for x in sigma) if sigma is not None else '?'} mm (x, y, z); "
         f"{len(fit_starts)} training windows, {len(test_starts)} held-out windows")
 
-    # a fit's starts are told apart by their open-loop error at the reference horizon on training windows:
-    # the fit's own windows are shorter, and there a lag and a slower velocity response can cost about the same
-    score_starts = sample_starts(open_loop_starts(ttr, lead, frac), SCORE_WINDOWS, s.seed)
-
-    def score(jm):
-        r = jm.evaluate(ttr, score_starts, lead, {s.reference: steps[s.reference]})[s.reference]
-        return float(np.mean(np.linalg.norm(r["err"][r["valid"]], axis=1))) if r["valid"].any() else np.inf
-
-    # every fit then goes on on the open-loop errors up to the reference horizon: what the diagnosis measures
     train_open = open_loop_starts(ttr, lead, frac)
-    polish = OpenLoop.upto(sample_starts(train_open, POLISH_WINDOWS, s.seed + 1), lead, steps[s.reference])
     open_train = OpenLoop.upto(sample_starts(train_open, DISCOVER_WINDOWS, s.seed + 2), lead, steps[s.reference])
-    block_rows = max(1, int(round(VERDICT_BLOCK_S / dt)))
-    fitter = Fitter(s, added, ttr, fit_starts, fit_len, score, polish, tte, test_starts, lead, steps, block_rows)
 
     baseline = fitter.evaluate(fit_model(s.model, dtr, ttr, fit_starts, fit_len, s, say, score, polish))
     base_sum = baseline.summary
@@ -490,14 +489,37 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
 # ---------------------------------------------------------------- data
 
 
-def split_logs(logs, validate=None) -> tuple[list, list, Split]:
-    """(train logs, held-out logs, description): the validate logs, or every third time block held out."""
+def _fitter(s: Settings, added, ttr, tte, lead: int, steps: dict, fit_len: int, frac: float, block_rows: int
+            ) -> Fitter:
+    """The fitter of one split: training windows drawn from ``ttr``, held-out windows on ``tte``, the score that
+    picks a fit's start and the open-loop polish (both on training windows). UserError when the logs are too
+    short for it."""
+    fit_starts = sample_starts(ttr.window_starts(fit_len, 0.7 * frac), s.fit_windows, s.seed)
+    test_starts = evenly(open_loop_starts(tte, lead, frac), MAX_EVAL_WINDOWS)
+    _check_sizes(fit_starts, fit_len, test_starts, tte, lead, steps[s.reference], ttr.dt_s)
+    # a fit's starts are told apart by their open-loop error at the reference horizon on training windows:
+    # the fit's own windows are shorter, and there a lag and a slower velocity response can cost about the same
+    score_starts = sample_starts(open_loop_starts(ttr, lead, frac), SCORE_WINDOWS, s.seed)
+
+    def score(jm):
+        r = jm.evaluate(ttr, score_starts, lead, {s.reference: steps[s.reference]})[s.reference]
+        return float(np.mean(np.linalg.norm(r["err"][r["valid"]], axis=1))) if r["valid"].any() else np.inf
+
+    # every fit then goes on on the open-loop errors up to the reference horizon: what the diagnosis measures
+    train_open = open_loop_starts(ttr, lead, frac)
+    polish = OpenLoop.upto(sample_starts(train_open, POLISH_WINDOWS, s.seed + 1), lead, steps[s.reference])
+    return Fitter(s, added, ttr, fit_starts, fit_len, score, polish, tte, test_starts, lead, steps, block_rows)
+
+
+def split_logs(logs, validate=None, held_block: int = HOLDOUT_EVERY - 1) -> tuple[list, list, Split]:
+    """(train logs, held-out logs, description): the validate logs, or every third time block held out (the
+    blocks ``held_block`` modulo 3: 2, the diagnosis's own held-out data; 0 and 1 the other folds)."""
     if validate:
         return logs, validate, Split(kind="validate", train_logs=len(logs), validate_logs=len(validate))
     train, test = [], []
     for lg in logs:
         block = np.floor((lg.t_s - lg.t_s[0]) / BLOCK_S).astype(int)
-        held = block % HOLDOUT_EVERY == HOLDOUT_EVERY - 1
+        held = block % HOLDOUT_EVERY == held_block
         train.append(_masked(lg, held))
         test.append(_masked(lg, ~held))
     return train, test, Split(kind="time_blocks", block_s=BLOCK_S, held_out=f"every {HOLDOUT_EVERY}rd block")

@@ -129,7 +129,8 @@ class RankEntry:
     ``rollout_mm`` {horizon: error [mm]}; ``reduction`` at the reference horizon, ``reduction_by_horizon``
     at each; ``t_stat`` against the reference; ``identifiable``: its parameters change the predictions;
     ``fit`` the fit's figures ({"rms_mm", "evaluations", "status", "start"}); ``doc`` the effect's words;
-    ``screened``: True when only the quick screen's fit was made; ``runner_up`` on the best entry only.
+    ``screened``: True when only the quick screen's fit was made; ``runner_up`` on the best entry only;
+    ``t_folds``: the folds of the split ``t_stat`` was taken over, when more than one (:mod:`.crossfold`).
     """
 
     effect: str
@@ -145,6 +146,7 @@ class RankEntry:
     doc: str
     screened: bool | None = _optional()
     runner_up: RunnerUp | None = _optional()
+    t_folds: int | None = _optional()
 
 
 @dataclass

@@ -68,6 +68,12 @@ class Fit:
         return self.summary["rollout_mm"][key]
 
 
+def t_text(entry: dict) -> str:
+    """"t = 2.4", or "t = 3.5 over 3 folds" when the t was taken on every fold of the split (:mod:`.crossfold`)."""
+    folds = entry.get("t_folds")
+    return f"t = {entry['t_stat']:.1f}" + (f" over {folds} folds" if folds else "")
+
+
 @dataclass
 class Step:
     """One round's choice: ``effects`` is one name, or a look-alike group (best member first).
@@ -156,7 +162,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
                 # next round's choice passes given it and the two then earn their places together (_confirmed)
                 tentative = fitter.refit(fits[best["effect"]].model)
                 say(f"round {round_no}: none passes alone; {best['effect']} ({best['reduction']:+.1%}, "
-                    f"t = {best['t_stat']:.1f}) taken tentatively, to be kept only with the next round's choice")
+                    f"{t_text(best)}) taken tentatively, to be kept only with the next round's choice")
                 pending = (len(steps), current, remaining)
                 steps.append(Step(effects=[best["effect"]], entry=best, fit=tentative, before=current,
                                   alone=best))
@@ -222,8 +228,8 @@ def _confirmed(fitter, steps: list, pending: tuple, by_name: dict, floor: float 
     ok = passes(pair, before.error(key), floor, key) and passes(given, without.error(key), floor, key)
     name = tentative.effects[0]
     say(f"  together with {steps[-1].effects[0]}: {before.error(key):.3f} -> {final.error(key):.3f} mm "
-        f"({pair['reduction']:+.1%}, t = {pair['t_stat']:.1f}); {name} given the others {given['reduction']:+.1%} "
-        f"(t = {given['t_stat']:.1f}): " + ("both kept" if ok else f"{name} dropped"))
+        f"({pair['reduction']:+.1%}, {t_text(pair)}); {name} given the others {given['reduction']:+.1%} "
+        f"({t_text(given)}): " + ("both kept" if ok else f"{name} dropped"))
     if ok:
         steps[index] = _given_family(fitter, replace(tentative, entry=given, before=without, given=others,
                                                      fit=steps[-1].fit, member_fits={name: steps[-1].fit}),
@@ -246,7 +252,7 @@ def _partner_alone(fitter, partner: Step, without: Fit, before: Fit, by_name: di
     if not passes(entry, before.error(key), floor, key):
         return None
     say(f"  {name} alone, refitted from the pair's solution: {before.error(key):.3f} -> {without.error(key):.3f} mm "
-        f"({entry['reduction']:+.1%}, t = {entry['t_stat']:.1f}): kept")
+        f"({entry['reduction']:+.1%}, {t_text(entry)}): kept")
     return Step(effects=[name], entry=entry, fit=without, before=before)
 
 
@@ -269,7 +275,7 @@ def _given_family(fitter, step: Step, by_name: dict, floor: float | None, key: s
     for effect, (fit, identifiable) in zip(rivals, fitter.with_each(step.before, rivals)):
         entries.append(fitter.entry(effect, fit, identifiable, step.before))
         fits[effect.name] = fit
-        say(f"  {effect.name}: {entries[-1]['reduction']:+.1%} at {key} s (t = {entries[-1]['t_stat']:.1f})")
+        say(f"  {effect.name}: {entries[-1]['reduction']:+.1%} at {key} s ({t_text(entries[-1])})")
     entries.sort(key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)
     members, evidence = group_of(fitter, step.entry, entries, fits, floor, key)
     members, evidence = _interchangeable(fitter, members, evidence, fits, by_name, key, say)
@@ -292,7 +298,7 @@ def _full_family(fitter, current: Fit, entries: list, fits: dict, best: dict, by
         done[effect.name] = fitter.entry(effect, fit, identifiable, current)
         fits[effect.name] = fit
         got = done[effect.name]
-        say(f"  {effect.name}: {got['reduction']:+.1%} at {key} s (t = {got['t_stat']:.1f})")
+        say(f"  {effect.name}: {got['reduction']:+.1%} at {key} s ({t_text(got)})")
     entries = sorted((done.get(e["effect"], e) for e in entries), key=lambda r: (r["identifiable"], r["reduction"]),
                      reverse=True)
     return entries, next(e for e in entries if e["identifiable"])
@@ -307,7 +313,7 @@ def _interchangeable(fitter, members: list, evidence: dict, fits: dict, by_name:
         both, identifiable = fitter.with_effects(fits[members[0]], [by_name[name]])
         entry = fitter.entry(by_name[name], both, identifiable, fits[members[0]])
         if entry["reduction"] >= MIN_REDUCTION and entry["t_stat"] >= MIN_T:
-            say(f"  {name} adds {entry['reduction']:+.1%} to {members[0]} (t = {entry['t_stat']:.1f}): "
+            say(f"  {name} adds {entry['reduction']:+.1%} to {members[0]} ({t_text(entry)}): "
                 "not a look-alike")
             evidence = {k: v for k, v in evidence.items() if k != name}
             continue
@@ -353,7 +359,7 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
     ordered = sorted(entries.values(), key=lambda r: (r["identifiable"], r["reduction"]), reverse=True)
     if say:
         for e in ordered:
-            say(f"  {e['effect']}: " + (f"{e['reduction']:+.1%} at {key} s (t = {e['t_stat']:.1f})"
+            say(f"  {e['effect']}: " + (f"{e['reduction']:+.1%} at {key} s ({t_text(e)})"
                                         if e["identifiable"] else "not identifiable from these logs")
                 + (" (quick fit)" if e.get("screened") else ""))
     return ordered, fits

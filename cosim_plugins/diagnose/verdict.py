@@ -8,7 +8,8 @@ effects chosen in earlier rounds of :mod:`.stepwise`; :func:`passes`),
 * significantly: paired per-window improvements, averaged in blocks of
   :data:`BLOCK_S` (neighbouring windows share data), give t >= :data:`MIN_T`
   (:func:`gain_t`: the plain t, or the trimmed t when a few blocks gain far
-  more than the rest),
+  more than the rest; a candidate short of it only there is tested on every
+  fold of the time blocks, :mod:`.crossfold`),
 * and by at least :data:`MIN_EXPLAINED` of that model's excess over the
   noise floor (the part of the error that is explainable at all).
 
@@ -75,10 +76,20 @@ def gain_t(ref: dict, cand: dict, starts: np.ndarray, block_rows: int) -> float:
     spread swamps the gain every other block shows (a drop of 42 % at t = 2.4, with 45 of 57 blocks gaining);
     the trimmed t is not swayed by those blocks. The relative drop, a mean over every window, still counts them
     all, so a candidate that loses badly in a few blocks does not pass on the trimmed t."""
+    return blocks_t(gain_block_means(ref, cand, starts, block_rows))
+
+
+def gain_block_means(ref: dict, cand: dict, starts: np.ndarray, block_rows: int) -> np.ndarray:
+    """(blocks,) a candidate's per-window gain over ``ref`` (:func:`paired_t`'s) averaged per block of start
+    rows; empty when fewer than 4 windows are valid in both."""
     ok = ref["valid"] & cand["valid"]
     if ok.sum() < 4:
-        return 0.0
-    means = _block_means(_gain(ref, cand, ok), starts[ok], block_rows)
+        return np.zeros(0)
+    return _block_means(_gain(ref, cand, ok), starts[ok], block_rows)
+
+
+def blocks_t(means: np.ndarray) -> float:
+    """:func:`gain_t` of block means (n,): the larger of the plain and the trimmed t."""
     return max(_t_of(means), trimmed_t(means))
 
 
