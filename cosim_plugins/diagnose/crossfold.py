@@ -21,6 +21,7 @@ from typing import Callable
 
 import numpy as np
 
+from cosim.contract.errors import UserError
 from cosim_plugins.diagnose.stepwise import Fit
 from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T, blocks_t, gain_block_means
 
@@ -29,7 +30,7 @@ CROSS_T_FROM = 1.7  # a fold's t from which the other folds are asked too (sqrt(
 
 class CrossFolds:
     """The other folds of a time-block split: ``build(k)`` makes the :class:`~.fitting.Fitter` of fold ``k``
-    (0 .. ``n`` - 1) or raises :class:`~cosim.contract.errors.UserError` when that fold's data are too short."""
+    (0 .. ``n`` - 1) or raises UserError when that fold's data are too short (the fold is then left out)."""
 
     def __init__(self, build: Callable, n: int):
         self._build, self.n = build, n
@@ -56,8 +57,6 @@ class CrossFolds:
 
     def _fitter(self, k: int):
         if k not in self._fitters:
-            from cosim.contract.errors import UserError
-
             try:
                 self._fitters[k] = self._build(k)
             except UserError:  # this fold's training or held-out blocks are too short: it is left out

@@ -16,7 +16,8 @@ Pipeline of ``cosim diagnose`` (units mm, mm/s, Hz, s):
 5. refit the physical model jointly with each candidate effect on the
    training windows and rank the effects by the drop of held-out error at
    the reference horizon; then choose effects stepwise, each given the ones
-   before, and declare look-alike groups (:mod:`.stepwise`, :mod:`.lookalike`);
+   before, and declare look-alike groups (:mod:`.stepwise`, :mod:`.lookalike`); a gain whose t alone is
+   borderline is tested on the other two folds of the time blocks too (:mod:`.crossfold`);
 6. discover a form outside the library in what the chosen effects leave
    (:mod:`.discover`); drop a chosen force that only stands in for it, and
    let a listed effect take the place of its own terms in the form
