@@ -47,10 +47,7 @@ TRIM = 0.1  # share of blocks trimmed at each end by the trimmed t (gain_t)
 
 def paired_t(ref: dict, cand: dict, starts: np.ndarray, block_rows: int) -> float:
     """t statistic of |e_ref| - |e_cand| over windows valid in both, averaged per block of start rows."""
-    ok = ref["valid"] & cand["valid"]
-    if ok.sum() < 4:
-        return 0.0
-    return _block_t(_gain(ref, cand, ok), starts[ok], block_rows)
+    return _t_of(gain_block_means(ref, cand, starts, block_rows))
 
 
 def _gain(ref: dict, cand: dict, ok: np.ndarray) -> np.ndarray:
