@@ -135,7 +135,7 @@ def test_groups_step_like_separate_models():
     host.set_groups(thetas, 4)
     batch = host.predict_t(x, u, 0.02, up)
     host.set_groups(None)
-    assert [n for n, _ in seen] == [4, 4, 4, 4, 4, 4]  # one call per group (and per zero-velocity probe)
+    assert [n for n, _ in seen] == [4] * 12  # one call per group (and per zero-velocity probe), in each pass
     assert all(t is not np.ndarray for _, types in seen for t in types.values())
     for g in range(3):
         host.set_params(dict(zip(names, thetas[g])))
@@ -178,10 +178,11 @@ def test_a_term_runs_once_for_the_groups_that_agree_on_what_it_reads():
         xb = host.predict_t(xb, u, 0.02, u)
         out.append(xb)
     host.set_groups(None)
-    # step 1: every group alone; then groups 0-2 (same w_x) together; once far out, the merged call reads w_y
-    # and is redone split by it: 0 and 1 together (another k only), 2 and 3 alone
-    near = [6, 2] * 4
-    assert calls == [2, 2, 2, 2] + near + [6] + [4, 2, 2] * 7
+    # two passes per step (hold="exact"). Step 1's first: every group alone; then groups 0-2 (same w_x) together;
+    # once far out, the merged call reads w_y and is redone split by it: 0 and 1 together (another k only), 2 and
+    # 3 alone
+    near = [6, 2] * 9
+    assert calls == [2, 2, 2, 2] + near + [6] + [4, 2, 2] * 14
     for g in range(4):
         host.set_params(dict(zip(names, thetas[g])))
         xs = x[:, 2 * g:2 * g + 2]

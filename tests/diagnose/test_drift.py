@@ -34,7 +34,7 @@ def _logs(folder, drag_step: float) -> list:
     for i, name in enumerate(PATHS):
         f = (1.0 + drag_step) ** i
         prm = {**syn.TRUE_PARAMS, **{n: syn.TRUE_PARAMS[n] * f for n in ("Cd0", "Cd1", "Cl0")}}
-        plant = physical.from_params(prm)
+        plant = physical.from_params(prm, substeps=8)  # near the continuous-time swimmer
         files += syn.write_cases(folder / f"log{i}", plant.predict, 1250, {name: cases[name]}, seed=10 + i,
                                  defects=syn.Defects(noise_mm=0.1))
     return [str(p) for p in files]
