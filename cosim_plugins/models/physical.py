@@ -36,9 +36,9 @@ each step is taken twice: first with the geometry at a prediction that
 knows only the thrust and Cd1, then at the first pass's new velocity. With
 the prediction alone the scheme is first-order where the angle terms (Cd0,
 Cl0) are large against Cd1: a fast swimmer (m / (Cd0 + Cd1) = 33 ms,
-30 mm/s) ends 0.22 mm off its finely integrated path after 1 s at 20 ms
+30 mm/s) ends 0.24 mm off its finely integrated path after 1 s at 20 ms
 steps, which a diagnosis took up as an effect; with the second pass,
-0.04 mm, and the error falls as the step squared. The default, ``"paper"``,
+0.046 mm, and the error falls as the step squared. The default, ``"paper"``,
 is the scheme above.
 
 Fit: (1) the six base parameters by linear instrumental-variable least
