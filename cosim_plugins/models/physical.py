@@ -93,6 +93,11 @@ _sum3 = np.add.reduce  # _sum3(a * b, 0): the component sums of (3, n) arrays, a
 def _geometry_t(p, v, u, pb):
     """:func:`geometry` on component-major arrays (3, n) (faster: contiguous rows; few numpy calls, since the
     rollouts step a few hundred columns at a time)."""
+    return (*_angle_terms_t(v, u), _centring_t(p, pb))
+
+
+def _angle_terms_t(v, u):
+    """sin(alpha) (n,) and sin(2 alpha) |v| v_perp (3, n) [mm/s] of :func:`geometry`, component-major."""
     vn = np.sqrt(_sum3(v * v, 0))
     wn = np.sqrt(_sum3(u * u, 0))
     den = vn * wn
@@ -103,9 +108,13 @@ def _geometry_t(p, v, u, pb):
     # sin(2a) |v| v_perp = 2 cos (|v| w_hat - cos v): no division by sin(a)
     c2 = 2.0 * cos * ok
     lift = (c2 * vn / np.where(wn > 1e-12, wn, 1.0)) * u - (c2 * cos) * v
+    return sin_a, lift
+
+
+def _centring_t(p, pb):
+    """sin(pi |p| / |P_b|) c_hat (3, n) of :func:`geometry`, component-major."""
     pn = np.sqrt(_sum3(p * p, 0))
-    cent = p * (-np.sin((np.pi / pb) * pn) / np.where(pn > 1e-12, pn, 1.0))
-    return sin_a, lift, cent
+    return p * (-np.sin((np.pi / pb) * pn) / np.where(pn > 1e-12, pn, 1.0))
 
 
 def forces(p, v, u, params: dict, terms=(), pb_norm_mm: float = 70 * math.sqrt(3)):
@@ -287,19 +296,11 @@ class PhysicalModel(Model):
     def _step_t(self, x, u, h, th, u_prev=None, groups=None):
         """One step of h [s] on component-major arrays: x (6, n), u and u_prev (3, n) -> (6, n); ``groups``: the
         :class:`_Groups` of :meth:`set_groups` (``th`` is then theirs). ``hold="exact"`` takes it twice, the
-        second time with the geometry at the first's new (step-mean) velocity (see the module doc)."""
-        out = self._pass_t(x, u, h, th, u_prev, groups)
-        if self._exact:
-            out = self._pass_t(x, u, h, th, u_prev, groups, v_geo=out[3:])
-        return out
-
-    def _pass_t(self, x, u, h, th, u_prev=None, groups=None, v_geo=None):
-        """:meth:`_step_t`'s one pass, the geometry taken at ``v_geo`` (3, n) [mm/s] (default: the scheme's own
-        prediction)."""
+        second time with the geometry at the first's new (step-mean) velocity (see the module doc); what does
+        not depend on the velocity (the held command, the centring force, the terms' calls) is made once."""
         p, v = x[:3], x[3:]
         s = self._scale
-        f, given = u, v_geo  # the command whose force acts; the velocity the geometry is taken at, when given
-        v_geo = v
+        f = u  # the command whose force acts
         if self._exact:  # see the module doc
             if groups is not None:
                 f1, w, decay = groups.hold(s, h)
@@ -312,24 +313,35 @@ class PhysicalModel(Model):
                 f1, w, decay = _hold_factors(s, h, th[2])
             if u_prev is not None:
                 f = w * u + (1.0 - w) * u_prev
-            drive = th[0] * f
-            drive[2] += th[4]
-            # the step's mean velocity: the first pass's prediction knows only the thrust and Cd1
-            v_geo = decay * v + (s * h * f1) * drive if given is None else given
-        else:
-            drive = th[0] * f
-            drive[2] += th[4]
-        sin_a, lift, cent = _geometry_t(p, v_geo, u, self._pb)
-        a = drive  # the forces held over the step, uN per mg
+        drive = th[0] * f
+        drive[2] += th[4]
+        cent = _centring_t(p, self._pb)
+        calls = self._term_calls(th, groups) if self.terms else ()
+        if not self._exact:  # the paper's scheme: the geometry at the last step's velocity
+            return self._pass_t(x, u, f, drive, cent, v, h, th, calls)
+        # first pass: the geometry at a prediction of the step's mean velocity that knows only the thrust and Cd1
+        out = self._pass_t(x, u, f, drive, cent, decay * v + (s * h * f1) * drive, h, th, calls)
+        return self._pass_t(x, u, f, drive, cent, out[3:], h, th, calls)
+
+    def _term_calls(self, th, groups) -> list:
+        """Per extra term, its force on (p, v, u) (3, n) with this step's parameters (a group's, under set_groups)."""
+        if groups is not None:
+            return [g.force for g in groups.terms]
+        # under set_columns the terms read the shared values of the base parameters
+        named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
+        return [_one_call(_term_params(term, named)) for term in self.terms]
+
+    def _pass_t(self, x, u, f, drive, cent, v_geo, h, th, calls):
+        """:meth:`_step_t`'s one pass: the drive and the centring force (3, n) held, the angle terms and the extra
+        terms taken at ``v_geo`` (3, n) [mm/s]; the step's new state (6, n)."""
+        p, v = x[:3], x[3:]
+        s = self._scale
+        sin_a, lift = _angle_terms_t(v_geo, u)
+        a = drive.copy()  # the forces held over the step, uN per mg
         a += th[3] * lift
         a += th[5] * cent
         drag = th[1] * sin_a + th[2]
         if self.terms:
-            if groups is not None:
-                calls = [g.force for g in groups.terms]
-            else:  # under set_columns the terms read the shared values of the base parameters
-                named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
-                calls = [_one_call(_term_params(term, named)) for term in self.terms]
             slowing = 0.0
             for term, moving, call in zip(self.terms, self._velocity_terms(), calls):
                 ft = call(term, p, v_geo, f)
