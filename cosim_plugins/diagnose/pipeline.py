@@ -452,7 +452,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
     (a Fit) or None): the sparse regression of :mod:`.discover` on what the final model (the chosen effects in)
     leaves, without the terms named in ``exclude``; or, given ``form`` ((terms, scales, coefficients):
     :func:`.standin.in_place_of_terms`), that form refitted on top of the final model."""
-    from cosim_plugins.diagnose.discover import discover, refit_form
+    from cosim_plugins.diagnose.discover import NO_FORM, discover, refit_form
 
     reference = final.model
     if not supports_effects(reference.host):
@@ -471,6 +471,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
         return Discovered(**found), None, None
     summ, ev = found.pop("summary"), found.pop("ev")
     found.pop("fitted")
+    linear_t = found.pop("linear_t", None)
     source = found.pop("source")
     key = s.reference
     ref_sum = final.summary
@@ -484,6 +485,11 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
         return Discovered(status="none", explanation="the sparse form chosen on the linearised problem does not "
                           "lower the held-out error once refitted: what is left looks like noise, or a form the "
                           "candidates cannot express", terms=found["terms"]), None, None
+    if linear_t is not None and linear_t < MIN_T and not _discovered_passes(Discovered(**found)):
+        # the linearised drop was not significant and the refit does not pass either: no form
+        return Discovered(status="none", explanation=f"{NO_FORM} (the sparse form chosen on the linearised problem "
+                          f"lowers it by {found['reduction']:.0%} once refitted, t = {found['t_stat']:.1f})",
+                          terms=found["terms"]), None, None
     return Discovered(**found), source, held.get("fit")
 
 
