@@ -19,7 +19,7 @@ output-error setting as the effect fits:
    1, 2, ... :data:`MAX_TERMS` terms; the number of terms is chosen on the
    *held-out* windows (the sparsest form that keeps 80 % of the largest drop
    of held-out error); a linearised drop that is not significant (paired t
-   over blocks of windows below the verdict's :data:`MIN_T`) is refitted all
+   over blocks of windows below the verdict's MIN_T) is refitted all
    the same, and the caller keeps it only when the refit passes the verdict's
    tests: the linearisation about a baseline that two missing effects pull
    far off can understate a form several times (11 % linearised against
@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim_plugins.diagnose.verdict import BLOCK_S, MIN_T, paired_t
+from cosim_plugins.diagnose.verdict import BLOCK_S, paired_t
 from cosim_plugins.identify.effect import Effect, EffectParam
 
 AXES = "xyz"
@@ -256,7 +256,7 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
         say(f"discover: a flow varying with position ({kind[0]}): its uniform part, "
             f"{', '.join(TERMS[c].name for c in uniform)}, added to the form")
     found = refit_form([TERMS[i] for i in chosen], scales[chosen], xi[chosen], fit_fn, [[n, e] for n, e, _ in path])
-    found["linear_t"] = t  # below MIN_T: the refit must pass the verdict's tests itself (the caller checks)
+    found["linear_t"] = t  # below the verdict's MIN_T: the refit must pass its tests itself (the caller checks)
     return found
 
 

@@ -384,3 +384,53 @@ def test_a_look_ahead_whose_pair_is_not_confirmed_keeps_the_partner_alone():
     drag, = sel.steps
     assert drag.before.error("1.0") == 1.0 and drag.entry["reduction"] == pytest.approx(0.38)
     assert sel.final.error("1.0") == pytest.approx(0.62)
+
+
+class _Told(_Sets):
+    """A :class:`_Sets` fitter whose fits carry held-out errors (every window errs by the set's error along x), so
+    the look-alike test can weigh them: t = +-5 for a gap of more than 2 % between two fits, else 0."""
+
+    def __init__(self, errors: dict, windows: int = 40):
+        from types import SimpleNamespace
+
+        super().__init__(errors)
+        self.test_starts = np.arange(windows)
+        self.tte = SimpleNamespace(log=np.zeros(windows, int), dt_s=0.02)
+
+    def _fit(self, effects):
+        fit = super()._fit(effects)
+        err = np.zeros((len(self.test_starts), 3))
+        err[:, 0] = fit.error("1.0")
+        fit.ev["1.0"] = {"valid": np.ones(len(err), bool), "err": err}
+        return fit
+
+    def paired_t(self, ref_ev, new_ev):
+        ref, new = ref_ev["err"][0, 0], new_ev["err"][0, 0]
+        return 0.0 if abs(ref - new) <= 0.02 * ref else 5.0 * np.sign(ref - new)
+
+    def paired_t_horizons(self, ref, new):
+        return self.paired_t(ref.ev["1.0"], new.ev["1.0"])
+
+
+def test_a_look_alike_group_is_weighed_again_given_the_effects_chosen_after_it():
+    """A latency and an actuation lag tie in the first round (0.75 mm each, beside a missing flow) and are declared
+    a group, led by the latency; the flow is chosen given it. Given the flow, the lag leaves 0.14 mm and the latency
+    0.25: the lag is named alone, the final model has it, and the flow's drop is measured again given it."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import rank, select
+
+    names = ("sensor_latency", "actuation_lag", "heading_lag", "background_flow")
+    fitter = _Told({(): 1.0, ("sensor_latency",): 0.75, ("actuation_lag",): 0.752, ("heading_lag",): 0.9,
+                    ("background_flow",): 0.77, ("sensor_latency", "background_flow"): 0.25,
+                    ("actuation_lag", "background_flow"): 0.14, ("heading_lag", "background_flow"): 0.3})
+    effects = [SimpleNamespace(name=n) for n in names]
+    start = fitter._fit(())
+    first = rank(fitter, start, effects, "1.0")
+    sel = select(fitter, start, effects, first, 3, {"1.0": 0.1}, "1.0")
+    assert sel.rounds[0][0]["effect"] == "sensor_latency"  # it led the first round's group
+    assert [s.effects for s in sel.steps] == [["actuation_lag"], ["background_flow"]]
+    lag, flow = sel.steps
+    assert lag.given == ["background_flow"] and lag.entry["reduction"] == pytest.approx(1.0 - 0.14 / 0.77)
+    assert flow.given == ["actuation_lag"] and flow.entry["reduction"] == pytest.approx(1.0 - 0.14 / 0.752)
+    assert sel.final.model.effects == {"actuation_lag", "background_flow"}
