@@ -1,4 +1,5 @@
-"""Discovery's parts on synthetic data: the forward selection and the reading of a form in words."""
+"""Discovery: the forward selection and the reading of a form in words on synthetic data; a form the linearisation
+understates, on logs of the blind bench's simulator."""
 
 from __future__ import annotations
 
@@ -97,3 +98,29 @@ def test_a_flow_holds_its_uniform_part_when_it_vanishes_inside_the_tank(coefs, p
     if point is not None:
         assert found == pytest.approx(point, abs=1e-9)
     assert D.holds_uniform_part(terms, c, push) == inside
+
+
+def test_a_form_the_linearisation_understates_is_kept_when_its_refit_passes(tmp_path, fresh_plugins):
+    """The blind bench's seed 73, multi_003 (redrawn): water turning about an off-centre axis beside a quadratic
+    drag worth 0.9x the linear drag at cruise. About the baseline, which the two missing effects pull far off, the
+    linearised regression's drop is not significant (t = 0.3); refitted, the form lowers the held-out error by
+    73 % (t = 6.4). It is kept, read as a swirl."""
+    import re
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    import blind_sim
+
+    from cosim_plugins.diagnose.pipeline import Settings, run
+    from cosim_plugins.diagnose.verdict import MIN_T
+
+    case = blind_sim.draw_multi_case(1562531378, ["quadratic_drag", "rotating_flow"], index=3)
+    assert case.truth["rotating_flow"]["omega_rad_s"] == pytest.approx(0.1088, abs=1e-4)
+    said = []
+    found = run(blind_sim.simulate(case, tmp_path), settings=Settings(candidates=[], discover=True, drift=False),
+                progress=said.append).json["discovered"]
+    linear = next(m for m in said if "terms chosen on held-out windows" in m)
+    assert float(re.search(r"t = (-?[\d.]+)\)", linear).group(1)) < MIN_T, linear
+    assert found["status"] == "found" and found["pattern"] == "swirl", found
+    assert found["reduction"] >= 0.5 and found["t_stat"] >= MIN_T
