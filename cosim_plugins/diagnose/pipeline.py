@@ -19,7 +19,8 @@ Pipeline of ``cosim diagnose`` (units mm, mm/s, Hz, s):
    before, and declare look-alike groups (:mod:`.stepwise`, :mod:`.lookalike`); a gain whose t alone is
    borderline is tested on the other two folds of the time blocks too (:mod:`.crossfold`);
 6. discover a form outside the library in what the chosen effects leave
-   (:mod:`.discover`); drop a chosen force that only stands in for it, and
+   (:mod:`.discover`; when none passes, again about the model with another
+   velocity time constant, :func:`_other_time_constants`); drop a chosen force that only stands in for it, and
    let a listed effect take the place of its own terms in the form
    (:mod:`.standin`); search the listed effects again on top of the form;
    design the experiment that tells a look-alike group
