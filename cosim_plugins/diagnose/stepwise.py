@@ -393,7 +393,7 @@ def _groups_given_others(fitter, sel: Selection, trials: list, by_name: dict, fl
     """Each look-alike group of ``sel`` weighed again given every other chosen effect (:func:`_given_family`, in
     place). A group was declared given the steps before it only; an effect chosen after it can tell its members
     apart: an actuation lag and a latency each lowered a case's error by 25 % beside a missing uniform flow, and
-    given the flow the lag left 0.15 mm and the latency 0.25 mm. When another member leads then, the final
+    given the flow the lag left 0.14 mm and the latency 0.25 mm. When another member leads then, the final
     model takes it, and the other steps' drops are measured again given it. ``trials``: the backward check's
     last (reduction, step index, entry given the others, model without the step)."""
     for _, i, entry, without in sorted(trials, key=lambda x: x[1]):
@@ -401,8 +401,11 @@ def _groups_given_others(fitter, sel: Selection, trials: list, by_name: dict, fl
         if not step.is_group:
             continue
         others = [s.effects[0] for j, s in enumerate(sel.steps) if j != i]
-        weighed = _given_family(fitter, replace(step, entry=entry, before=without, given=others, fit=sel.final,
-                                                member_fits={step.effects[0]: sel.final}), by_name, floor, key, say)
+        given = replace(step, entry=entry, before=without, given=others, fit=sel.final,
+                        member_fits={step.effects[0]: sel.final})
+        weighed = _given_family(fitter, given, by_name, floor, key, say)
+        if weighed is given:  # no look-alike family to weigh (a flow grouped with a wall drag): it stays as declared
+            continue
         sel.steps[i] = weighed
         if weighed.effects[0] == step.effects[0]:
             continue

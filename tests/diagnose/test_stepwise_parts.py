@@ -434,3 +434,22 @@ def test_a_look_alike_group_is_weighed_again_given_the_effects_chosen_after_it()
     assert lag.given == ["background_flow"] and lag.entry["reduction"] == pytest.approx(1.0 - 0.14 / 0.77)
     assert flow.given == ["actuation_lag"] and flow.entry["reduction"] == pytest.approx(1.0 - 0.14 / 0.752)
     assert sel.final.model.effects == {"actuation_lag", "background_flow"}
+
+
+def test_a_group_outside_the_look_alike_families_stays_as_declared():
+    """A flow and a wall drag tie in the first round (a group outside the lag family), a quadratic drag is chosen
+    given them: weighed again given it, the group keeps both members and a fit for each (the experiment that
+    tells them apart is designed from those fits)."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import rank, select
+
+    names = ("background_flow", "wall_drag", "quadratic_drag")
+    fitter = _Told({(): 1.0, ("background_flow",): 0.6, ("wall_drag",): 0.601, ("quadratic_drag",): 0.9,
+                    ("background_flow", "quadratic_drag"): 0.3, ("background_flow", "wall_drag"): 0.6,
+                    ("background_flow", "wall_drag", "quadratic_drag"): 0.3})
+    effects = [SimpleNamespace(name=n) for n in names]
+    start = fitter._fit(())
+    sel = select(fitter, start, effects, rank(fitter, start, effects, "1.0"), 3, {"1.0": 0.1}, "1.0")
+    assert [s.effects for s in sel.steps] == [["background_flow", "wall_drag"], ["quadratic_drag"]]
+    assert set(sel.steps[0].member_fits) == {"background_flow", "wall_drag"}
