@@ -289,7 +289,8 @@ ROWS = (
         "(see [How diagnose is validated](diagnose/validation.md))",
         "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75",
         ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56",
-         "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74"),
+         "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
+         "blind_s76", "blind_s78"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
@@ -397,7 +398,10 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                                       "replaces)"),
                  ("blind_groups_s71", "seed 71 (step-out starts at the band's top, a borderline t on every "
                                       "fold)"),
-                 ("blind_groups_s73", "seed 73 (the model's step taken twice: second order)"))
+                 ("blind_groups_s73", "seed 73 (the model's step taken twice: second order)"),
+                 ("blind_groups_s79", "seed 79 (discovery judged on its refit and retried about other time "
+                                      "constants, a group weighed again given the effects after it; cd50fed: "
+                                      "1 case failed, mended in c1ae6fd)"))
 
 
 def several_effects_table() -> str:
