@@ -191,7 +191,7 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
     ``words``, ``source`` (the effect file) and the refit's ``fitted``/``summary``/``ev``. The sensitivities'
     columns are shared among ``jobs`` forked processes. ``exclude``: names of terms the form may not use.
     """
-    from cosim_plugins.identify.joint import JointModel, OpenLoop
+    from cosim_plugins.identify.joint import OpenLoop
 
     say = say or (lambda m: None)
     span = train.lead + max(train.steps)
@@ -205,9 +205,7 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
     test_win = test.starts
     scales = _term_scales(ttr, train.starts, span)
     lib = library_effect(TERMS, scales, name="_library")
-    base_host = type(reference.host)(**reference.host.options)
-    base_host.dt_s = reference.dt_s
-    jm = JointModel(base_host, [*reference.effects, lib], base_params=reference.params())
+    jm = reference.rebuilt([*reference.effects, lib])
     n_terms = len(TERMS)
     host_idx = [i for i, n in enumerate(jm.names) if "." not in n]
     term_idx = [jm.names.index(f"_library.{t.name}") for t in TERMS]

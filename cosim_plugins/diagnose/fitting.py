@@ -92,9 +92,7 @@ class Fitter:
 
     def without(self, final: Fit, keep) -> Fit:
         """The final model's host with only the effects ``keep``, started at the final solution and refitted."""
-        host = type(final.model.host)(**final.model.host.options)
-        host.dt_s = final.model.dt_s
-        jm = JointModel(host, [*self.added, *keep], base_params=final.model.params())
+        jm = final.model.rebuilt([*self.added, *keep])
         jm.per_unit = final.model.per_unit
         return self.refit(jm)
 
@@ -210,13 +208,19 @@ def fit_model(name, dtr, ttr, starts, length, s: "Settings", say, score=None, po
 
 
 def _time_constant_starts(jm: JointModel) -> list:
-    """Starts at each of :data:`TAU_STARTS_S`: every force parameter of the physical host scaled by one factor
-    (the steady speed per Hz unchanged, the velocity time constant m / Cd1 moved there); none for other hosts."""
+    """Starts at each of :data:`TAU_STARTS_S` (:func:`at_time_constant`) from the short-window fit's time
+    constant; none for hosts without one."""
     tau = velocity_time_constant(jm)
     if tau is None or not np.isfinite(tau) or tau <= 0:
         return []
-    own = {n: v for n, v in jm.params().items() if "." not in n}  # not a saved model's effect parameters
-    return [{n: v * tau / target for n, v in own.items()} for target in TAU_STARTS_S]
+    return [at_time_constant(jm, tau, target) for target in TAU_STARTS_S]
+
+
+def at_time_constant(jm: JointModel, tau_s: float, target_s: float) -> dict:
+    """{host parameter: value}: every force parameter of the physical host scaled by tau_s / target_s, so the
+    steady speed per Hz is unchanged and the velocity time constant m / Cd1 moves from ``tau_s`` to
+    ``target_s`` [s] (a saved model's effect parameters untouched)."""
+    return {n: v * tau_s / target_s for n, v in jm.params().items() if "." not in n}
 
 
 def _host_init(host) -> dict:
@@ -232,13 +236,9 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: "Settings", 
     from the logged commands), and (``fresh``) the equation-error fit from the host's initial parameters
     with each of them (see :func:`cosim_plugins.identify.joint.fit_joint`).
     """
-    base_host = ref.host
-    if ref.effects:  # rebuild from the plain host so the effects are not added twice
-        base_host = type(ref.host)(**ref.host.options)
-        base_host.dt_s = ref.dt_s
-    jm = JointModel(base_host, [*ref.effects, *effects], base_params=ref.params())
+    jm = ref.rebuilt([*ref.effects, *effects])  # from the plain host, so the effects are not added twice
     extra = [st for e in effects for st in e.qualified_starts(ttr.u, ttr.dt_s)]
-    host0 = _host_init(base_host)
+    host0 = _host_init(jm.host)
     # the effects' own starts held while the host adapts
     fresh_starts = [host0] + [{**host0, **st} for st in extra] if fresh else []
     # from a degenerate reference even the equation-error fits settle in its corner (no drag, no thrust): the

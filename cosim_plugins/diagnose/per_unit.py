@@ -99,9 +99,7 @@ class PerUnitFit:
 
 def clone(jm: JointModel) -> JointModel:
     """A copy of ``jm`` (same host options, effects, parameters and per-unit offsets)."""
-    host = type(jm.host)(**jm.host.options)
-    host.dt_s = jm.dt_s
-    out = JointModel(host, jm.effects, base_params=jm.params())
+    out = jm.rebuilt()
     out.per_unit = jm.per_unit
     return out
 

@@ -476,11 +476,8 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
 
 def _without_last(jm: JointModel) -> JointModel:
     """``jm`` without its last effect (the discovered form), the others' and the host's parameters as they are."""
-    host = type(jm.host)(**jm.host.options)
-    host.dt_s = jm.dt_s
     last = jm.effects[-1].name
-    return JointModel(host, list(jm.effects[:-1]),
-                      base_params={n: v for n, v in jm.params().items() if not n.startswith(f"{last}.")})
+    return jm.rebuilt(jm.effects[:-1], {n: v for n, v in jm.params().items() if not n.startswith(f"{last}.")})
 
 
 def _other_time_constants(fitter: Fitter, final: Fit, say):
@@ -490,21 +487,18 @@ def _other_time_constants(fitter: Fitter, final: Fit, say):
     sluggish response that carries the lead-in's drift through each window (a time constant of 1.56 s for a
     swimmer's 31 ms): about such a model the sensitivities of a missing force have the wrong shape, and the
     linearised regression finds nothing (its refit, started there, may not leave that basin either)."""
-    from cosim_plugins.diagnose.fitting import TAU_STARTS_S
+    from cosim_plugins.diagnose.fitting import TAU_STARTS_S, at_time_constant
 
-    own = {n: v for n, v in final.model.params().items() if "." not in n}
-    mass_mg = final.model.host.options.get("mass_mg")
-    if mass_mg is None or not own.get("Cd1", 0.0) > 0.0:
+    jm = final.model
+    mass_mg, cd1 = jm.host.options.get("mass_mg"), jm.params().get("Cd1", 0.0)
+    if mass_mg is None or not cd1 > 0.0:
         return
-    tau = mass_mg / (1000.0 * own["Cd1"])
+    tau = mass_mg / (1000.0 * cd1)  # the model's own, not its short-window fit's (velocity_time_constant)
     for target in TAU_STARTS_S:
         if max(target / tau, tau / target) <= OTHER_TAU_RATIO:
             continue
         say(f"discover: again about the model with a velocity time constant of {target:g} s (its own: {tau:.3g} s)")
-        host = type(final.model.host)(**final.model.host.options)
-        host.dt_s = final.model.dt_s
-        yield fitter.evaluate(JointModel(host, list(final.model.effects), base_params={
-            **final.model.params(), **{n: v * tau / target for n, v in own.items()}}))
+        yield fitter.evaluate(jm.rebuilt(base_params={**jm.params(), **at_time_constant(jm, tau, target)}))
 
 
 def _discover_about(about: Fit, final: Fit, ttr, tte, test_starts, s, fitter, say, train, exclude, form):
