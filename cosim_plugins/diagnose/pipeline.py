@@ -443,9 +443,16 @@ def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selecti
     if not left or room < 1:
         return None
     say(f"given the discovered form: {len(left)} candidates")
-    fitter = fitter.beside(found.model.effects[-1:])  # the form stays in when a chosen effect is taken out
+    fitter = on_top_of(fitter, found)
     first = rank(fitter, found, left, s.reference, say, screen=True)
     return select(fitter, found, left, first, room, floor, s.reference, say)
+
+
+def on_top_of(fitter: Fitter, found: Fit) -> Fitter:
+    """``fitter`` for a search on top of the model ``found`` (the chosen effects and the discovered form): every
+    effect of ``found`` stays in the models it refits when that search takes one of its own choices out."""
+    held = {a.name for a in fitter.added}
+    return fitter.beside([e for e in found.model.effects if e.name not in held])
 
 
 def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fitter, say, train, exclude=(),

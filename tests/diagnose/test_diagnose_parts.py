@@ -236,3 +236,23 @@ def test_a_diverging_model_shows_a_huge_error_not_nan(synthetic):
     err = np.linalg.norm(ev["err"][ev["valid"]], axis=1)
     assert ev["valid"].sum() > 10 and np.all(np.isfinite(err))
     assert np.allclose(err, DIVERGED_MM)
+
+
+def test_a_search_on_top_of_a_discovered_form_keeps_the_effects_chosen_before_it(monkeypatch):
+    """The search given a discovered form takes its own choices out one at a time (the backward check): the
+    effects the first search chose stay in those models, or each choice would be judged against a model that
+    lacks them and always pass."""
+    from cosim_plugins.diagnose.discover import TERMS, library_effect
+    from cosim_plugins.diagnose.fitting import Fit, Fitter
+    from cosim_plugins.diagnose.pipeline import on_top_of
+
+    known = known_effects()
+    flow, wall, lag = known["background_flow"], known["wall_drag"], known["actuation_lag"]
+    form = library_effect(TERMS[:2], [1.0, 1.0])
+    host = lookup("model", "physical")()
+    host.dt_s = 0.02
+    found = Fit(JointModel(host, [flow, wall, form]), {}, {})
+    fitter = Fitter(None, [flow], None, None, 0, None, None, None, None, 0, {}, 0)
+    monkeypatch.setattr(Fitter, "refit", lambda self, jm: jm)
+    kept = on_top_of(fitter, found).without(found, [lag])
+    assert [e.name for e in kept.effects] == ["background_flow", "wall_drag", "discovered", "actuation_lag"]
