@@ -68,7 +68,7 @@ from cosim_plugins.diagnose.result import (
     StepResult,
     Stepwise,
 )
-from cosim_plugins.diagnose.standin import OWN_TERMS, in_place_of_terms, stand_ins
+from cosim_plugins.diagnose.standin import OWN_TERMS, in_place_of_terms, own_law_misfit, stand_ins
 from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.diagnose.verdict import (
@@ -304,6 +304,12 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
             else:
                 say(f"in place of its terms: {swap[0]}'s terms add too little to the form less them: the form stays")
                 swap = ()
+        if found_fit is not None and not swap and selection.steps and _discovered_passes(result.discovered):
+            by_name = {e.name: e for e in candidates}
+            result.discovered.refines = own_law_misfit(
+                fitter, final, found_fit, [by_name[st.effects[0]] for st in selection.steps
+                                           if not st.is_group and st.effects[0] in by_name],
+                floor[s.reference], s.reference, say)
         if found_fit is not None and (swap or discovered_explains(result, s.reference)):
             given = _given_discovered(fitter, found_fit, left, selection, s, floor, say)
             if given is not None:

@@ -171,6 +171,9 @@ def markdown(r: DiagnosisResult, pngs=()) -> str:
                           f"{found.reduction:.0%} (t = {found.t_stat:.1f}). The effect file `{found.file}` holds "
                           f"them: rename it, edit its form and refit with `--effects-file {found.file} --add "
                           "discovered`."]
+            if found.refines:
+                lines += ["", f"The form's weight lies in {found.refines}'s own terms: it corrects that effect's law "
+                              "on these logs rather than adding another effect."]
         else:
             lines.append(found.explanation + ".")
     lines += _drift_section(r.drift, key)

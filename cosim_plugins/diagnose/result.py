@@ -296,7 +296,8 @@ class Discovered:
     ``expressions``, fitted ``params``, ``words``, the ``file`` written, and the refit's ``rollout_mm``,
     ``reduction`` (reference horizon), ``reduction_by_horizon`` and ``t_stat`` against the chosen effects;
     ``pattern`` the kind its linear terms make (:func:`.discover.pattern`: "swirl", "thrust", "shear",
-    "gradient", "push"); ``path`` [[term, error], ...] the forward selection's steps."""
+    "gradient", "push"); ``path`` [[term, error], ...] the forward selection's steps; ``refines`` the chosen
+    effect whose own terms do what the form does (:func:`.standin.own_law_misfit`: its law, not a new effect)."""
 
     status: str
     explanation: str | None = _optional()
@@ -311,6 +312,7 @@ class Discovered:
     reduction: float | None = _optional()
     reduction_by_horizon: Horizons | None = _optional()
     t_stat: float | None = _optional()
+    refines: str | None = _optional()
 
 
 @dataclass

@@ -39,6 +39,12 @@ name, whose own terms the discovered form holds (a quadratic drag's |u| u
 beside a shear's terms), takes their place when its one law does as well as
 they do; the form without them is refitted, and the search on top of it
 names the effect if it passes the gates there.
+
+The last case (:func:`own_law_misfit`): a chosen effect whose own terms the
+discovered form holds, and which do what the whole form does. A wall drag
+whose decay law is not the library's 1/d (an exponential) leaves a remainder
+near the walls that v exp(-d/3 mm) terms take up: that is the effect's law
+misfitting these logs, not another effect, and the verdict says so.
 """
 
 from __future__ import annotations
@@ -163,6 +169,35 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
     say(f"in place of its terms: {best[1]} takes the place of {', '.join(sorted(terms - {t.name for t in best[2][0]}))}"
         "; the form without them is refitted")
     return best[1:]
+
+
+def own_law_misfit(fitter, final, with_form, chosen, floor: float | None, key: str, say) -> str | None:
+    """The name of a chosen effect (of ``chosen``, Effects in ``final``) whose own terms (:data:`OWN_TERMS`) in the
+    discovered form do what the whole form does, or None: refitted on top of ``final`` with the form's terms of
+    that effect alone (their coefficients as fitted in ``with_form``: ``final`` plus the form), the whole form no
+    longer passes the verdict's gates against them. The form then corrects that effect's law."""
+    form = with_form.model.effects[-1]
+    terms = set(form.terms or ())
+    prm = with_form.model.params()
+    for effect in chosen:
+        own = set(OWN_TERMS.get(effect.name, ())) & terms
+        if not own:
+            continue
+        if own == terms:
+            say(f"own law: the form is {effect.name}'s own terms alone")
+            return effect.name
+        keep = [q for q in form.params if q.name in own]
+        part = library_effect([_term(q.name) for q in keep], [q.scale for q in keep], name=form.name,
+                              coefs=[prm[f"{form.name}.{q.name}"] for q in keep])
+        fit, _ = fitter.with_effects(final, [part], fresh=False)
+        whole = fitter.entry(form, with_form, True, fit)
+        misfit = not passes(whole, fit.error(key), floor, key)
+        say(f"own law: {effect.name}'s terms of the form ({', '.join(sorted(own))}) leave {fit.error(key):.3f} mm; "
+            f"the whole form {with_form.error(key):.3f} mm ({whole['reduction']:+.1%}, t = {whole['t_stat']:.1f})"
+            + (f": the form corrects {effect.name}'s law" if misfit else ""))
+        if misfit:
+            return effect.name
+    return None
 
 
 def matched_start(effect, tl, terms, coefs, host: dict, rows: int = 2000) -> dict:

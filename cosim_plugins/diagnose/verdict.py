@@ -187,6 +187,14 @@ def _verdict(result: DiagnosisResult, key: str) -> Verdict:
     left = sw.joint.rollout_mm[key] if steps else err
     found = result.discovered
     text = _steps_text(result, key) if steps else ""
+    if discovered_explains(result, key) and found.refines:
+        text += (f" What they leave is {found.refines}'s own law, not another effect: terms of its form lower it by "
+                 f"a further {found.reduction:.0%} (from {left:.2f} to {found.rollout_mm[key]:.2f} mm at {key} s; "
+                 f"t = {found.t_stat:.1f}), so the library's law for {found.refines} does not quite follow these "
+                 "logs. " + _sentence("; ".join(found.words)) + f". The form is written to {found.file}: a law "
+                 f"for {found.refines} of that shape in an effect file (examples/my_effect.py shows how) is "
+                 "refitted with --effects-file FILE --add NAME." + _given_text(result, key))
+        return out("explained", prefix + text.strip())
     if discovered_explains(result, key):
         best = next((e for e in result.ranking if e.identifiable), None)
         what = ("what they leave" if steps else "the error") + (

@@ -196,6 +196,38 @@ def test_a_listed_effect_takes_the_place_of_its_own_terms_in_the_form(beside_dra
         assert out == ()
 
 
+@pytest.mark.parametrize("own_only_mm, corrects", [(0.70, True), (0.82, False)])
+def test_a_form_of_a_chosen_effects_own_terms_corrects_its_law(own_only_mm, corrects):
+    """A form found on what a flow and a wall drag leave, three wall-decay terms (the wall drag's own form) and an
+    x x term, lowers their 0.97 mm to 0.67 mm. Refitted with the wall terms alone it leaves 0.70 mm: the whole
+    form adds 4 % to that, and it corrects the wall drag's law. When the wall terms alone leave 0.82 mm, the x x
+    term adds 18 % (t = 3.7): something more than the wall drag's law, no correction. The flow (its own terms, the
+    constants, not in the form) is not tried."""
+    from types import SimpleNamespace as NS
+
+    from cosim_plugins.diagnose import discover as D
+    from cosim_plugins.diagnose.standin import own_law_misfit
+    from cosim_plugins.effects.forces import BACKGROUND_FLOW, WALL_DRAG
+
+    names = ["fx_vx_wall3", "fy_vy_wall3", "fz_vz_wall3", "fx_xx"]
+    by_name = {t.name: t for t in D.TERMS}
+    form = D.library_effect([by_name[n] for n in names], [1.0] * 4, coefs=[-2.7, -0.8, -2.1, 2e-5])
+    whole = NS(model=NS(effects=[form], params=lambda: {f"discovered.{n}": c for n, c in
+                                                        zip(names, (-2.7, -0.8, -2.1, 2e-5))}),
+               error=lambda k: 0.67)
+    final = NS(error=lambda k: 0.97)
+    tried = []
+
+    def with_effects(before, effects, fresh):
+        tried.append((list(effects[0].terms), [q.init for q in effects[0].params], fresh))
+        return NS(error=lambda k: own_only_mm), True
+
+    out = own_law_misfit(NS(with_effects=with_effects, entry=_entry), final, whole, [BACKGROUND_FLOW, WALL_DRAG],
+                         None, KEY, lambda m: None)
+    assert tried == [(names[:3], [-2.7, -0.8, -2.1], False)]
+    assert out == ("wall_drag" if corrects else None)
+
+
 def test_a_listed_effects_start_matches_the_force_of_the_terms_it_replaces():
     """The quadratic drag's start, fitted to the force of the |v| v terms it is to replace (-0.004 |v| v along each
     axis), is c = 0.004, though its listed starts are 1e-3, 4e-3 and 1.6e-2 and its initial value 0."""

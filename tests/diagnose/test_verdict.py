@@ -308,6 +308,19 @@ def test_a_discovered_form_explains_the_error_and_what_named_effects_leave():
         "A form outside the library explains the error: a sparse")
 
 
+def test_a_form_that_corrects_a_named_effects_law_leaves_the_verdict_explained():
+    """A form whose weight lies in the wall drag's own terms (``refines``) is no new effect: the status stays
+    "explained", and the words send the user to the wall drag's law."""
+    r = result(2.0, 0.2, steps=[step("wall_drag", 2.0, 1.0)], joint_left=1.0,
+               discovered={**found(0.5), "refines": "wall_drag"})
+    v = verdict(r, K)
+    assert v["status"] == "explained" and v["effects"] == ["wall_drag"]
+    assert ("What they leave is wall_drag's own law, not another effect: terms of its form lower it by a further 40% "
+            "(from 1.00 to 0.50 mm at 1.0 s; t = 5.0), so the library's law for wall_drag does not quite follow "
+            "these logs.") in v["explanation"]
+    assert "A form outside the library" not in v["explanation"]
+
+
 def test_an_effect_named_given_the_discovered_form_joins_the_named_set():
     """A library effect beside an outside one: named once the discovered form is in (the stepwise search run
     again on top of it), after the effects of the first search, in the verdict's words and set."""
