@@ -470,8 +470,8 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
     if not supports_effects(final.model.host):
         return Discovered(status="unsupported", explanation="discovery needs a parametric reference model"), None, None
     out = _discover_about(final, final, ttr, tte, test_starts, s, fitter, say, train, exclude, form)
-    if form is not None or out[0].status == "too_short" or _discovered_passes(out[0]):
-        return out
+    if form is not None or out[0].status == "too_short" or _discovered_passes(out[0]) or out[0].terms:
+        return out  # retried only when the regression chose no term: about the model as fitted it saw no shape
     best = None  # the best refit about another time constant, passing or not
     for about in _other_time_constants(fitter, final, say):
         again = _discover_about(about, final, ttr, tte, test_starts, s, fitter, say, train, exclude, None)
