@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cosim_plugins.diagnose.rebuild import rebuilt
 from cosim_plugins.diagnose.verdict import BLOCK_S, paired_t
 from cosim_plugins.identify.effect import Effect, EffectParam
 
@@ -205,7 +206,7 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
     test_win = test.starts
     scales = _term_scales(ttr, train.starts, span)
     lib = library_effect(TERMS, scales, name="_library")
-    jm = reference.rebuilt([*reference.effects, lib])
+    jm = rebuilt(reference, [*reference.effects, lib])
     n_terms = len(TERMS)
     host_idx = [i for i, n in enumerate(jm.names) if "." not in n]
     term_idx = [jm.names.index(f"_library.{t.name}") for t in TERMS]

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cosim.contract.errors import UserError
+from cosim_plugins.diagnose.rebuild import rebuilt
 from cosim_plugins.diagnose.stepwise import Fit
 from cosim_plugins.diagnose.verdict import blocks_t, gain_block_means, paired_t, paired_t_horizons
 from cosim_plugins.identify.joint import JointModel, fit_joint, supports_effects
@@ -92,7 +93,7 @@ class Fitter:
 
     def without(self, final: Fit, keep) -> Fit:
         """The final model's host with only the effects ``keep``, started at the final solution and refitted."""
-        jm = final.model.rebuilt([*self.added, *keep])
+        jm = rebuilt(final.model, [*self.added, *keep])
         jm.per_unit = final.model.per_unit
         return self.refit(jm)
 
@@ -236,7 +237,7 @@ def _with_effects(ref: JointModel, effects, ttr, starts, length, s: "Settings", 
     from the logged commands), and (``fresh``) the equation-error fit from the host's initial parameters
     with each of them (see :func:`cosim_plugins.identify.joint.fit_joint`).
     """
-    jm = ref.rebuilt([*ref.effects, *effects])  # from the plain host, so the effects are not added twice
+    jm = rebuilt(ref, [*ref.effects, *effects])  # from the plain host, so the effects are not added twice
     extra = [st for e in effects for st in e.qualified_starts(ttr.u, ttr.dt_s)]
     host0 = _host_init(jm.host)
     # the effects' own starts held while the host adapts

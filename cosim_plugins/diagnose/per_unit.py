@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtrc, ndtr
 
+from cosim_plugins.diagnose.rebuild import rebuilt
 from cosim_plugins.identify.joint import JointModel, OpenLoop, UnitOffsets
 
 DRIFT_PARAMS = ("k", "Cd1", "Fvs")
@@ -99,7 +100,7 @@ class PerUnitFit:
 
 def clone(jm: JointModel) -> JointModel:
     """A copy of ``jm`` (same host options, effects, parameters and per-unit offsets)."""
-    out = jm.rebuilt()
+    out = rebuilt(jm)
     out.per_unit = jm.per_unit
     return out
 

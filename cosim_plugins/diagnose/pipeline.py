@@ -46,9 +46,17 @@ from cosim.contract.errors import UserError
 from cosim_plugins.diagnose import drift
 from cosim_plugins.diagnose.crossfold import CrossFolds
 from cosim_plugins.diagnose.experiment import Experiment, design_experiment
-from cosim_plugins.diagnose.fitting import Fitter, bar, degenerate, fit_model, reduction_of, velocity_time_constant
+from cosim_plugins.diagnose.fitting import (
+    Fitter,
+    bar,
+    degenerate,
+    fit_model,
+    reduction_of,
+    velocity_time_constant,
+)
 from cosim_plugins.diagnose.localise import localise, window_features
 from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
+from cosim_plugins.diagnose.rebuild import rebuilt
 from cosim_plugins.diagnose.result import (
     Added,
     Baseline,
@@ -490,7 +498,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
 def _without_last(jm: JointModel) -> JointModel:
     """``jm`` without its last effect (the discovered form), the others' and the host's parameters as they are."""
     last = jm.effects[-1].name
-    return jm.rebuilt(jm.effects[:-1], {n: v for n, v in jm.params().items() if not n.startswith(f"{last}.")})
+    return rebuilt(jm, jm.effects[:-1], {n: v for n, v in jm.params().items() if not n.startswith(f"{last}.")})
 
 
 def _other_time_constants(fitter: Fitter, final: Fit, say):
@@ -511,7 +519,7 @@ def _other_time_constants(fitter: Fitter, final: Fit, say):
         if max(target / tau, tau / target) <= OTHER_TAU_RATIO:
             continue
         say(f"discover: again about the model with a velocity time constant of {target:g} s (its own: {tau:.3g} s)")
-        yield fitter.evaluate(jm.rebuilt(base_params={**jm.params(), **at_time_constant(jm, tau, target)}))
+        yield fitter.evaluate(rebuilt(jm, base_params={**jm.params(), **at_time_constant(jm, tau, target)}))
 
 
 def _discover_about(about: Fit, final: Fit, ttr, tte, test_starts, s, fitter, say, train, exclude, form):

@@ -183,14 +183,6 @@ class JointModel:
     def params(self) -> dict:
         return {n: float(t) for n, t in zip(self.names, self.theta)}
 
-    def rebuilt(self, effects=None, base_params: dict | None = None) -> "JointModel":
-        """A new model on a fresh copy of this one's plain host (its options and step) holding ``effects``
-        (default: this model's) started at ``base_params`` (default: this model's parameters)."""
-        host = type(self.host)(**self.host.options)
-        host.dt_s = self.dt_s
-        return JointModel(host, self.effects if effects is None else effects,
-                          base_params=self.params() if base_params is None else base_params)
-
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         return np.array([q.lo for q in self.param_list]), np.array([q.hi for q in self.param_list])
 
