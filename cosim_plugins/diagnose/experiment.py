@@ -254,13 +254,17 @@ def placements(tl: Timeline) -> tuple[list, float]:
     the box the logs visited (their positions' :data:`BOX_PERCENTILES`): horizontally until the circle
     touches the box ("-x", "+x", "-y", "+y"), vertically to the box's floor or ceiling ("-z", "+z"). A side
     the circle cannot move toward (the box narrower than the circle, or the centre already there) is left out.
+    Every circle stays inside the box: the centre is moved in from a side it would cross, and the radius is at
+    most half the box's narrower horizontal side (:data:`RADIUS_MM`'s least at the smallest).
     """
     center, radius = workspace(tl)
     p = tl.p[np.all(np.isfinite(tl.p), axis=1)]
     if len(p) == 0:
         return [("centre", center)], radius
     lo, hi = np.percentile(p, BOX_PERCENTILES, axis=0)
-    out = [("centre", np.asarray(center, dtype=float))]
+    radius = float(max(min(radius, 0.5 * min(hi[:2] - lo[:2])), RADIUS_MM[0]))
+    center = _inside(center, lo, hi, radius)  # the median of logs that dwell near a wall lies near it
+    out = [("centre", center)]
     for axis in range(3):
         reach = 0.0 if axis == 2 else radius  # how far the circle reaches from its centre along the axis
         for sign, edge in ((-1, lo[axis] + reach), (+1, hi[axis] - reach)):
@@ -270,6 +274,17 @@ def placements(tl: Timeline) -> tuple[list, float]:
             c[axis] = edge
             out.append((("-" if sign < 0 else "+") + "xyz"[axis], c))
     return out, radius
+
+
+def _inside(center, lo, hi, radius_mm: float) -> np.ndarray:
+    """``center`` (3,) [mm] moved so that a horizontal circle of ``radius_mm`` about it stays inside the box
+    ``lo``..``hi`` (3,) [mm] (about the box's middle along an axis narrower than the circle)."""
+    c = np.array(center, dtype=float)
+    for axis in range(3):
+        reach = 0.0 if axis == 2 else radius_mm
+        a, b = lo[axis] + reach, hi[axis] - reach
+        c[axis] = np.clip(c[axis], a, b) if a <= b else 0.5 * (lo[axis] + hi[axis])
+    return c
 
 
 def circle_points(center, radius_mm: float) -> np.ndarray:

@@ -60,6 +60,27 @@ def test_the_circle_is_placed_at_every_side_of_the_logs_box(workspace_timeline):
     assert named["+z"][2] == pytest.approx(hi[2])
 
 
+def test_a_circle_stays_inside_the_box_of_logs_that_dwell_near_a_wall():
+    """Most rows near the +y side of the box (a long log there, short ones across the tank): the positions'
+    median lies 9 mm inside that side, and a circle of half the spread about it crossed the box, and the tank's
+    wall, by 35 - 9 mm (the blind bench's seed 80, multi_008: the experiment's log ran along the wall)."""
+    rng = np.random.default_rng(1)
+    near = np.column_stack([rng.uniform(-40, 40, 4000), rng.uniform(46, 70, 4000), rng.uniform(-10, 10, 4000)])
+    across = np.column_stack([rng.uniform(-40, 40, 1500), rng.uniform(-55, 70, 1500), rng.uniform(-10, 10, 1500)])
+    p = np.vstack([near, across])
+    n = len(p)
+    none = np.zeros(n, dtype=bool)
+    log = Log(path="near_wall", t_s=np.arange(n) * DT_S, omega_hz=np.tile([5.0, 0.0, 0.0], (n, 1)), p_mm=p,
+              gap=none, repeat=none, outlier=none)
+    tl = Timeline.from_dataset(Dataset.from_logs([log]))
+    places, radius = placements(tl)
+    lo, hi = np.nanpercentile(tl.p, [1, 99], axis=0)
+    assert np.median(p[:, 1]) + radius > hi[1] + 10.0  # the old circle about the median crossed the box
+    for name, c in places:
+        for axis in (0, 1):
+            assert lo[axis] - 1e-9 <= c[axis] - radius and c[axis] + radius <= hi[axis] + 1e-9, (name, c, radius)
+
+
 def test_a_wall_drag_and_a_flow_are_separated_beyond_the_old_spin_only_design(workspace_timeline):
     cd1 = syn.TRUE_PARAMS["Cd1"]
     step = SimpleNamespace(effects=["wall_drag", "background_flow"], member_fits={
