@@ -401,7 +401,10 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s73", "seed 73 (the model's step taken twice: second order)"),
                  ("blind_groups_s79", "seed 79 (discovery judged on its refit and retried about other time "
                                       "constants, a group weighed again given the effects after it; cd50fed: "
-                                      "1 case failed, mended in c1ae6fd)"))
+                                      "1 case failed, mended in c1ae6fd)"),
+                 ("blind_groups_s80", "seed 80 (retries only when discovery chose no term, a form of a chosen "
+                                      "effect's own terms read as its law, the search on top of the form "
+                                      "keeping the first search's effects; 233e6b0)"))
 
 
 def several_effects_table() -> str:
