@@ -277,12 +277,12 @@ def placements(tl: Timeline) -> tuple[list, float]:
 
 
 def _inside(center, lo, hi, radius_mm: float) -> np.ndarray:
-    """``center`` (3,) [mm] moved so that a horizontal circle of ``radius_mm`` about it stays inside the box
-    ``lo``..``hi`` (3,) [mm] (about the box's middle along an axis narrower than the circle)."""
+    """``center`` (3,) [mm] moved horizontally so that a circle of ``radius_mm`` about it stays inside the box
+    ``lo``..``hi`` (3,) [mm] (about the box's middle along an axis narrower than the circle); its height, a
+    median of the positions, is inside already."""
     c = np.array(center, dtype=float)
-    for axis in range(3):
-        reach = 0.0 if axis == 2 else radius_mm
-        a, b = lo[axis] + reach, hi[axis] - reach
+    for axis in (0, 1):
+        a, b = lo[axis] + radius_mm, hi[axis] - radius_mm
         c[axis] = np.clip(c[axis], a, b) if a <= b else 0.5 * (lo[axis] + hi[axis])
     return c
 

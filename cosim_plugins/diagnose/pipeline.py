@@ -288,8 +288,9 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                              exclude, form)
 
         result.discovered, source, found_fit = discover_on(final)
+        by_name = {e.name: e for e in candidates}
         if found_fit is not None and selection.steps and _discovered_passes(result.discovered):
-            gone = stand_ins(fitter, selection, {e.name: e for e in candidates},
+            gone = stand_ins(fitter, selection, by_name,
                              lambda fit, exclude: discover_on(fit, lambda m: None, exclude), floor[s.reference],
                              s.reference, say)
             if gone:  # the form is discovered again on what the effects left leave
@@ -313,7 +314,6 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                 say(f"in place of its terms: {swap[0]}'s terms add too little to the form less them: the form stays")
                 swap = ()
         if found_fit is not None and not swap and selection.steps and _discovered_passes(result.discovered):
-            by_name = {e.name: e for e in candidates}
             result.discovered.refines = own_law_misfit(
                 fitter, final, found_fit, [by_name[st.effects[0]] for st in selection.steps
                                            if not st.is_group and st.effects[0] in by_name],

@@ -149,8 +149,7 @@ def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float 
         rest = [q for q in form.params if q.name not in own]
         if not rest:
             continue
-        reduced = library_effect([_term(q.name) for q in rest], [q.scale for q in rest], name=form.name,
-                                 coefs=[prm[f"{form.name}.{q.name}"] for q in rest])
+        reduced = _part_of(form, rest, prm)
         gone = [q.name for q in form.params if q.name in own]
         start = matched_start(effect, fitter.ttr, [_term(n) for n in gone], [prm[f"{form.name}.{n}"] for n in gone],
                               {k: v for k, v in prm.items() if "." not in k})
@@ -186,9 +185,7 @@ def own_law_misfit(fitter, final, with_form, chosen, floor: float | None, key: s
         if own == terms:
             say(f"own law: the form is {effect.name}'s own terms alone")
             return effect.name
-        keep = [q for q in form.params if q.name in own]
-        part = library_effect([_term(q.name) for q in keep], [q.scale for q in keep], name=form.name,
-                              coefs=[prm[f"{form.name}.{q.name}"] for q in keep])
+        part = _part_of(form, [q for q in form.params if q.name in own], prm)
         fit, _ = fitter.with_effects(final, [part], fresh=False)
         whole = fitter.entry(form, with_form, True, fit)
         misfit = not passes(whole, fit.error(key), floor, key)
@@ -238,6 +235,13 @@ def _uniform_part(fit, flow: str | None, form) -> bool:
             prm.get("Cd1", 0.0) * np.array([prm[f"{flow}.w_x"], prm[f"{flow}.w_y"]]))
     return holds_uniform_part([_term(n) for n in form.terms], {n: prm[f"{form.name}.{n}"] for n in form.terms},
                               push)
+
+
+def _part_of(form, params, prm: dict):
+    """The discovered ``form`` with only its parameters ``params`` (its terms' coefficients), started at their
+    values in ``prm`` (a model's parameters, the form's qualified by its name)."""
+    return library_effect([_term(q.name) for q in params], [q.scale for q in params], name=form.name,
+                          coefs=[prm[f"{form.name}.{q.name}"] for q in params])
 
 
 def _term(name: str):
