@@ -7,7 +7,7 @@ import pytest
 
 from cosim.contract.plugins import lookup
 from cosim_plugins.diagnose.noise import noise_floor, noise_sigma_mm
-from cosim_plugins.diagnose.pipeline import velocity_time_constant
+from cosim_plugins.diagnose.pipeline import _floor_time_constant, velocity_time_constant
 from cosim_plugins.identify import synthetic as syn
 from cosim_plugins.identify.dataset import Dataset
 from cosim_plugins.identify.effect import check_effect, known_effects
@@ -147,6 +147,15 @@ def test_noise_estimate_and_floor_of_a_perfect_model(synthetic):
     # a degenerate fit's "no drag" (tau -> infinity) would have doubled the floor at 1.0 s
     far = noise_floor(tl, starts, 10, steps, sigma, 1e3)
     assert np.mean(far["1.0"]) > 1.5 * np.mean(floor["1.0"])
+    # fits that took up a missing lag with three times the drag's time constant: their median would put the floor
+    # above the true model's error; a candidate that passes with the true time constant sets it
+    slow = JointModel(lookup("model", "physical").from_params({**syn.TRUE_PARAMS, "Cd1": syn.TRUE_PARAMS["Cd1"] / 3}))
+    inflated = noise_floor(tl, starts, 10, steps, sigma, velocity_time_constant(slow))
+    err = np.mean(np.linalg.norm(ev["1.0"]["err"][ev["1.0"]["valid"]], axis=1))
+    assert np.mean(inflated["1.0"][ev["1.0"]["valid"]]) > 1.1 * err
+    assert _floor_time_constant([slow] * 3, passing=[slow, jm])[0] == pytest.approx(tau)
+    assert _floor_time_constant([jm] * 3, passing=[slow])[0] == pytest.approx(tau)  # never longer than the median
+    assert _floor_time_constant([slow, slow, jm])[0] == pytest.approx(3 * tau, rel=0.01)
 
 
 def test_time_block_split_keeps_halves_apart():
