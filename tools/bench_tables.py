@@ -290,7 +290,7 @@ ROWS = (
         "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75",
         ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56",
          "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
-         "blind_s76", "blind_s78", "blind_s81"),
+         "blind_s76", "blind_s78", "blind_s81", "blind_s83"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
@@ -404,7 +404,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                                       "1 case failed, mended in c1ae6fd)"),
                  ("blind_groups_s80", "seed 80 (retries only when discovery chose no term, a form of a chosen "
                                       "effect's own terms read as its law, the search on top of the form "
-                                      "keeping the first search's effects; 233e6b0)"))
+                                      "keeping the first search's effects; 233e6b0)"),
+                 ("blind_groups_s82", "seed 82 (the noise floor's time constant from a passing candidate's "
+                                      "shorter fit; 75df2a2)"))
 
 
 def several_effects_table() -> str:
