@@ -265,3 +265,22 @@ def test_a_search_on_top_of_a_discovered_form_keeps_the_effects_chosen_before_it
     monkeypatch.setattr(Fitter, "refit", lambda self, jm: jm)
     kept = on_top_of(fitter, found).without(found, [lag])
     assert [e.name for e in kept.effects] == ["background_flow", "wall_drag", "discovered", "actuation_lag"]
+
+
+@pytest.mark.parametrize("moved_mm, tried", [(2.5, 4), (900.0, 0)])
+def test_discovery_retries_only_about_time_constants_where_the_model_does_not_run_off(monkeypatch, moved_mm, tried):
+    """A model without drag moved to a short time constant scales its thrust by ~1e11 and runs off the tank:
+    discovery is not retried about it (the refit there raised on a non-finite Jacobian)."""
+    from cosim_plugins.diagnose.fitting import Fit, Fitter
+    from cosim_plugins.diagnose.pipeline import RUNOFF_RATIO, Settings, _other_time_constants
+
+    plant = lookup("model", "physical").from_params({**syn.TRUE_PARAMS, "Cd1": 1e-9})  # tau ~ 1e7 s
+    final = Fit(JointModel(plant), {}, {"rollout_mm": {"1.0": 1.0}})
+    fitter = Fitter(Settings(), [], None, None, 0, None, None, None, None, 0, {}, 0)
+    monkeypatch.setattr(Fitter, "evaluate", lambda self, jm: Fit(jm, {}, {"rollout_mm": {"1.0": moved_mm}}))
+    said = []
+    moved = list(_other_time_constants(fitter, final, said.append))
+    assert len(moved) == tried and (moved_mm > RUNOFF_RATIO) == (tried == 0)
+    assert all("runs off" in line for line in said) == (tried == 0)
+    taus = [velocity_time_constant(f.model) for f in moved]
+    assert taus == pytest.approx([0.03, 0.1, 0.3, 1.0][:tried], rel=1e-6)
