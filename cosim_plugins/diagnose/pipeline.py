@@ -120,7 +120,7 @@ EFFECT_MODEL = "physical"
 DISCOVERED_FILE = "discovered_effect.py"
 OTHER_TAU_RATIO = 3.0  # discovery tries again about time constants further than this factor from the model's
 # ... but not about one where the moved model's held-out error is this many times the model's own: it runs off (a
-# model without drag, moved to 0.03 s, scaled its thrust and lift by ~1e11 and erred 530 mm against 1 mm; the
+# model without drag, moved to 0.03 s, scaled its thrust and lift by ~1e11 and erred 942 mm against 1 mm; the
 # refit there raised on its non-finite Jacobian)
 RUNOFF_RATIO = 20.0
 DISCOVER_ABOVE_FLOOR = 1.5  # a named effect leaving more than this x the floor: discovery runs too
