@@ -528,8 +528,9 @@ def _other_time_constants(fitter: Fitter, final: Fit, say):
         moved = fitter.evaluate(rebuilt(jm, base_params={**jm.params(), **at_time_constant(jm, tau, target)}))
         err = moved.error(fitter.s.reference)
         if own and not (err is not None and np.isfinite(err) and err <= RUNOFF_RATIO * own):
+            how = f"{err:.3g} mm" if err is not None else "no window it predicts"
             say(f"discover: not about a velocity time constant of {target:g} s (its own: {tau:.3g} s): the model "
-                f"moved there runs off ({err:.3g} mm against {own:.3g} mm)")
+                f"moved there runs off ({how} against {own:.3g} mm)")
             continue
         say(f"discover: again about the model with a velocity time constant of {target:g} s (its own: {tau:.3g} s)")
         yield moved

@@ -267,7 +267,7 @@ def test_a_search_on_top_of_a_discovered_form_keeps_the_effects_chosen_before_it
     assert [e.name for e in kept.effects] == ["background_flow", "wall_drag", "discovered", "actuation_lag"]
 
 
-@pytest.mark.parametrize("moved_mm, tried", [(2.5, 4), (900.0, 0)])
+@pytest.mark.parametrize("moved_mm, tried", [(2.5, 4), (900.0, 0), (None, 0)])
 def test_discovery_retries_only_about_time_constants_where_the_model_does_not_run_off(monkeypatch, moved_mm, tried):
     """A model without drag moved to a short time constant scales its thrust by ~1e11 and runs off the tank:
     discovery is not retried about it (the refit there raised on a non-finite Jacobian)."""
@@ -280,7 +280,7 @@ def test_discovery_retries_only_about_time_constants_where_the_model_does_not_ru
     monkeypatch.setattr(Fitter, "evaluate", lambda self, jm: Fit(jm, {}, {"rollout_mm": {"1.0": moved_mm}}))
     said = []
     moved = list(_other_time_constants(fitter, final, said.append))
-    assert len(moved) == tried and (moved_mm > RUNOFF_RATIO) == (tried == 0)
+    assert len(moved) == tried and (moved_mm is None or moved_mm > RUNOFF_RATIO) == (tried == 0)
     assert all("runs off" in line for line in said) == (tried == 0)
     taus = [velocity_time_constant(f.model) for f in moved]
     assert taus == pytest.approx([0.03, 0.1, 0.3, 1.0][:tried], rel=1e-6)
