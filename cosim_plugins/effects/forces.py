@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from cosim_plugins.identify.effect import Effect, EffectParam
+from cosim_plugins.models.physical import hydrodynamic_force
 
 #: Half the tank's edge [mm]: walls at +-75 mm on every axis.
 TANK_HALF_MM = 75.0
@@ -42,14 +43,6 @@ def _unit(a: np.ndarray) -> np.ndarray:
     return a / _safe(_norm(a))
 
 
-def _sin_alpha(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(n, 1) sine of the angle of attack between the command u and the velocity v (1 if either vanishes:
-    their cosine is then taken as 0)."""
-    cos = _dot(u, v) / (_safe(np.sqrt(_dot(u, u))) * _safe(np.sqrt(_dot(v, v))))
-    np.clip(cos, -1.0, 1.0, out=cos)
-    return np.sqrt(1.0 - cos * cos)[:, None]
-
-
 def wall_distance_mm(p: np.ndarray) -> np.ndarray:
     """(n,) distance from p (n, 3) [mm] to the nearest tank wall [mm], >= 0."""
     return np.maximum(TANK_HALF_MM - np.max(np.abs(p), axis=1), 0.0)
@@ -59,18 +52,19 @@ def wall_distance_mm(p: np.ndarray) -> np.ndarray:
 
 
 def _background_flow(p, v, u, prm):
-    cd = prm.get("Cd0", 0.0) * _sin_alpha(u, v) + prm.get("Cd1", 0.0)
-    return cd * np.array([prm["w_x"], prm["w_y"], 0.0])
+    w = np.array([prm["w_x"], prm["w_y"], 0.0])
+    return hydrodynamic_force(v - w, u, prm) - hydrodynamic_force(v, u, prm)
 
 
 BACKGROUND_FLOW = Effect(
     name="background_flow",
     params=(EffectParam("w_x", 0.0, -50.0, 50.0, "mm/s", 1.0), EffectParam("w_y", 0.0, -50.0, 50.0, "mm/s", 1.0)),
     force=_background_flow,
-    doc="A uniform drift of the water (residual circulation, a slow pump): the drag acts on the velocity "
-        "relative to the water, -Cd (v - w), so the extra force is +Cd w with the model's drag coefficient "
-        "Cd = Cd0 sin(alpha) + Cd1 (Eq. 2). w = (w_x, w_y, 0) [mm/s]; a vertical drift is not fitted because "
-        "it is indistinguishable from the net weight F_vs already in the model.",
+    doc="A uniform drift of the water (residual circulation, a slow pump): drag and lift act on the velocity "
+        "relative to the water, so the extra force is H(v - w) - H(v), H the model's own drag and lift (Eq. 2-5: "
+        "-(Cd0 sin(alpha) + Cd1) v + Cl0 sin(2 alpha) |v| v_perp, alpha taken against the relative velocity). "
+        "w = (w_x, w_y, 0) [mm/s]; a vertical drift is not fitted because it is indistinguishable from the "
+        "net weight F_vs already in the model.",
 )
 
 

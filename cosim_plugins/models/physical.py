@@ -111,6 +111,14 @@ def _angle_terms_t(v, u):
     return sin_a, lift
 
 
+def hydrodynamic_force(v: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
+    """(n, 3) [uN] drag and lift of Eq. 2-5 at velocity v (n, 3) [mm/s] through the water, command u (n, 3) [Hz]:
+    -(Cd0 sin(alpha) + Cd1) v + Cl0 sin(2 alpha) |v| v_perp (``params``: Cd0, Cd1, Cl0; a missing one is 0)."""
+    sin_a, lift = _angle_terms_t(v.T, u.T)
+    cd = params.get("Cd0", 0.0) * sin_a + params.get("Cd1", 0.0)
+    return params.get("Cl0", 0.0) * lift.T - cd[:, None] * v
+
+
 def _centring_t(p, pb):
     """sin(pi |p| / |P_b|) c_hat (3, n) of :func:`geometry`, component-major."""
     pn = np.sqrt(_sum3(p * p, 0))
