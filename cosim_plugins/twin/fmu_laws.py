@@ -1,8 +1,8 @@
 """The plant FMU's own laws of its built-in wall drag and background flow, as force effects.
 
-The library's ``wall_drag`` (a 1/d law) and ``background_flow`` (+Cd w with one scalar
-drag) are the host model's forms, not the FMU's (``plant.c``: ``wall_factor`` and
-``derivatives``). These two effects are the FMU's laws, so that ``twin.effect`` can
+The library's ``wall_drag`` (a 1/d law) and ``background_flow`` (the host model's drag
+and lift on the velocity relative to the water) are the host model's forms, not the
+FMU's (``plant.c``: ``wall_factor`` and ``derivatives``). These two effects are the FMU's laws, so that ``twin.effect`` can
 inject exactly what the FMU's switches ``wall_drag_on`` and ``background_flow_on`` add:
 
 ``fmu_wall_drag``
