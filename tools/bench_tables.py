@@ -406,7 +406,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                                       "effect's own terms read as its law, the search on top of the form "
                                       "keeping the first search's effects; 233e6b0)"),
                  ("blind_groups_s82", "seed 82 (the noise floor's time constant from a passing candidate's "
-                                      "shorter fit; 75df2a2)"))
+                                      "shorter fit; 75df2a2)"),
+                 ("blind_groups_s85", "seed 85 (the flow through the model's drag and lift on the velocity "
+                                      "relative to the water; 76fac38)"))
 
 
 def several_effects_table() -> str:
