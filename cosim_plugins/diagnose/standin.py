@@ -58,10 +58,10 @@ from cosim_plugins.diagnose.result import Dropped
 from cosim_plugins.diagnose.verdict import passes
 
 #: Discovery terms (:data:`.discover.TERMS`) that express a library force's own form or its look-alike: a uniform
-#: flow's force is nearly a constant (Cd1 w: the angle terms' change is small); a quadratic drag is -c |v| v, and since the
-#: speed follows the spin rate along a path, |u| u looks the same; a wall drag is v times a decay with the distance
-#: to the wall. Discovered without the force, they would only find it again, so the form that tests it may not use
-#: them.
+#: flow's force is nearly a constant (Cd1 w: the angle terms' change is small); a quadratic drag is -c |v| v, and
+#: since the speed follows the spin rate along a path, |u| u looks the same; a wall drag is v times a decay with the
+#: distance to the wall. Discovered without the force, they would only find it again, so the form that tests it may
+#: not use them.
 OWN_TERMS = {
     "background_flow": ("fx_1", "fy_1"),
     "quadratic_drag": tuple(f"f{c}_{k}_{q}{c}" for c in "xyz" for k, q in (("speed", "v"), ("spin", "u"))),

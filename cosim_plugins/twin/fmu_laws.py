@@ -2,8 +2,9 @@
 
 The library's ``wall_drag`` (a 1/d law) and ``background_flow`` (the host model's drag
 and lift on the velocity relative to the water) are the host model's forms, not the
-FMU's (``plant.c``: ``wall_factor`` and ``derivatives``). These two effects are the FMU's laws, so that ``twin.effect`` can
-inject exactly what the FMU's switches ``wall_drag_on`` and ``background_flow_on`` add:
+FMU's (``plant.c``: ``wall_factor`` and ``derivatives``). These two effects are the
+FMU's laws, so that ``twin.effect`` can inject exactly what the FMU's switches
+``wall_drag_on`` and ``background_flow_on`` add:
 
 ``fmu_wall_drag``
     -(fw - 1) D(a) v, with fw - 1 = gain sum over the six walls of exp(-gap_k / length),
