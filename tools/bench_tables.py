@@ -408,7 +408,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s82", "seed 82 (the noise floor's time constant from a passing candidate's "
                                       "shorter fit; 75df2a2)"),
                  ("blind_groups_s85", "seed 85 (the flow through the model's drag and lift on the velocity "
-                                      "relative to the water; 76fac38)"))
+                                      "relative to the water; 76fac38)"),
+                 ("blind_groups_s87", "seed 87 (multi only, the same code)"))
 
 
 def several_effects_table() -> str:
