@@ -22,7 +22,7 @@ def test_hidden_effect_ranks_first_and_cuts_the_held_out_error(diagnosed, effect
     assert all(e["reduction"] < 0.5 * best["reduction"] for e in r["ranking"][1:])
 
 
-def test_two_hidden_effects_are_both_named_in_order(diagnosed):
+def test_two_hidden_effects_are_both_named(diagnosed):
     """A background flow and a wall drag at once: each alone removes about a quarter of the error (the flow 27 %,
     the wall drag 25-28 %: which one the first round takes is a near tie), the second, given the first, most of
     the rest (70 %); the verdict names both and gives the joint drop."""

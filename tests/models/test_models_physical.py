@@ -43,6 +43,24 @@ def test_acceleration_matches_the_force_equations():
     np.testing.assert_allclose(acc, 1000.0 * f / 12.4, rtol=1e-4, atol=1e-3)
 
 
+def test_a_uniform_flow_gives_the_forces_at_the_velocity_relative_to_the_water():
+    """The library's background flow w: drag and lift act on v - w, so the model's forces with it are its forces
+    at v - w (the centring force and the net weight do not depend on v); with no angle terms it is +Cd1 w."""
+    from cosim_plugins.identify.effect import resolve
+
+    (flow,) = resolve(["background_flow"])
+    x, u = _random_states(40, seed=2)
+    w = np.array([2.5, -1.5, 0.0])
+    params = {**syn.TRUE_PARAMS, "background_flow.w_x": w[0], "background_flow.w_y": w[1]}
+    assert params["Cd0"] > 0 and params["Cl0"] != 0  # the angle terms matter here
+    p, v = x[:, :3], x[:, 3:]
+    np.testing.assert_allclose(forces(p, v, u, params, terms=[flow]), forces(p, v - w, u, syn.TRUE_PARAMS),
+                               rtol=1e-10, atol=1e-12)
+    linear = {**params, "Cd0": 0.0, "Cl0": 0.0}
+    extra = forces(p, v, u, linear, terms=[flow]) - forces(p, v, u, linear)
+    np.testing.assert_allclose(extra, np.broadcast_to(linear["Cd1"] * w, extra.shape), rtol=1e-12)
+
+
 def test_stiff_drag_is_stable():
     model = PhysicalModel.from_params({"k": 100.0, "Cd1": 100.0, "Cd0": 0.0})  # lambda dt ~ 1.6e5
     x = np.array([[0.0, 0.0, 0.0, 500.0, 0.0, 0.0]])
