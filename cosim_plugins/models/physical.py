@@ -127,9 +127,7 @@ def _centring_t(p, pb):
 
 def forces(p, v, u, params: dict, terms=(), pb_norm_mm: float = 70 * math.sqrt(3)):
     """Total force [uN], (n, 3), at p [mm], v [mm/s], u [Hz] for named ``params``."""
-    sin_a, lift, cent = geometry(p, v, u, pb_norm_mm)
-    f = params["k"] * u - ((params["Cd0"] * sin_a + params["Cd1"])[:, None] * v)
-    f = f + params["Cl0"] * lift + params["Fmax"] * cent
+    f = params["k"] * u + hydrodynamic_force(v, u, params) + params["Fmax"] * _centring_t(p.T, pb_norm_mm).T
     f[:, 2] += params["Fvs"]
     for term in terms:
         f = f + term.force(p, v, u, _term_params(term, params))
