@@ -844,10 +844,14 @@ def conditioning(jm: JointModel, theta: np.ndarray, J: np.ndarray) -> dict:
 def _standard_errors(J, r, n_used: int, n_distinct: int) -> np.ndarray:
     """sqrt(diag(s^2 (J^T J)^+)) with s^2 = |r|^2 / (n - P), times the overlap inflation n_used / n_distinct.
 
-    NaN for a parameter the residuals do not depend on (e.g. a step-out frequency above every command).
+    NaN for a parameter the residuals do not depend on (e.g. a step-out frequency above every command), and
+    for every parameter when the Jacobian or the residuals hold a non-finite value (a rollout that diverged at
+    the solution): no uncertainty is better than a made-up one.
     """
     J = np.asarray(J)
     p = J.shape[1]
+    if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r))):
+        return np.full(p, np.nan)
     s2 = float(r @ r) / max(n_used - p, 1)
     JTJ = J.T @ J
     scale = np.sqrt(np.maximum(np.diag(JTJ), 1e-300))
