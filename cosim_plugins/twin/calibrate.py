@@ -62,9 +62,7 @@ FD_STEP = 0.01  # finite-difference step in x (1 % of a log knob; a hundredth of
 UNDETERMINED = 0.5  # std above this share of |value| (or of the scale): not determined by the logs
 HOST_TRANSFORMS = {"sensor_latency": "the camera's latency_s (calibrated on the FMU)",
                    "heading_lag": "the FMU's heading dynamics (rot_drag_perp, calibrated)",
-                   "actuation_lag": "the FMU's coil circuit (R, L, C: fixed, not calibrated)",
-                   "step_out": "the FMU's magnet phase (f_so = moment B / (2 pi rot_drag_axial): held, not calibrated)"}
-UNCALIBRATED = ("actuation_lag", "step_out")  # host transforms whose FMU counterpart the twin holds fixed
+                   "actuation_lag": "the FMU's coil circuit (R, L, C: fixed, not calibrated)"}
 
 
 @dataclass
@@ -228,9 +226,8 @@ def calibrate(log_paths, validate_paths=(), settings: Settings | None = None, pr
     undetermined = {k.name: "standard error above half its value" for k in knobs if k.name in fitted and (
                     not np.isfinite(std[k.name]) or std[k.name] > UNDETERMINED * max(abs(values[k.name]),
                                                                                        0.0 if k.log else k.scale))}
-    for name in UNCALIBRATED:
-        if name in host["transforms"]:
-            undetermined[name] = HOST_TRANSFORMS[name]
+    if "actuation_lag" in host["transforms"]:
+        undetermined["actuation_lag"] = HOST_TRANSFORMS["actuation_lag"]
     units = {k.name: k.unit for k in knobs}
     result = {
         "logs": [str(p) for p in log_paths], "validate": [str(p) for p in validate_paths], "split": win.split,
