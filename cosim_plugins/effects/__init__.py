@@ -5,12 +5,10 @@ Each is a :class:`cosim_plugins.identify.effect.Effect` registered through the
 ``examples/my_effect.py``). Forms are generic (they must work on any lab's
 logs): each is documented with its physics, parameters and units.
 
-Forces (:mod:`.forces`): ``background_flow``, ``wall_drag``,
+Forces (:mod:`.forces`): ``background_flow``, ``wall_drag``, ``step_out``,
 ``gradient_force``, ``anisotropic_drag``, ``quadratic_drag``.
-Input transforms: ``step_out`` (:mod:`.step_out`, the magnet's phase by Adler's
-equation), ``actuation_lag`` and ``heading_lag`` (:mod:`.transforms`); sensor:
-``sensor_latency`` (:mod:`.transforms`). They are registered in this order
-(forces and step-out first, as the library lists them).
+Transforms (:mod:`.transforms`): ``actuation_lag`` and ``heading_lag``
+(input), ``sensor_latency`` (sensor).
 """
 
 from cosim import hookimpl
@@ -18,9 +16,8 @@ from cosim import hookimpl
 
 @hookimpl
 def cosim_register_effects(register):
-    from cosim_plugins.effects import forces, transforms
-    from cosim_plugins.effects.step_out import STEP_OUT
+    from cosim_plugins.effects.forces import FORCE_EFFECTS
+    from cosim_plugins.effects.transforms import TRANSFORM_EFFECTS
 
-    for effect in (forces.BACKGROUND_FLOW, forces.WALL_DRAG, STEP_OUT, forces.GRADIENT_FORCE, forces.ANISOTROPIC_DRAG,
-                   forces.QUADRATIC_DRAG, *transforms.TRANSFORM_EFFECTS):
+    for effect in (*FORCE_EFFECTS, *TRANSFORM_EFFECTS):
         register(effect)

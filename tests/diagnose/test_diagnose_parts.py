@@ -42,6 +42,8 @@ def test_force_forms():
     wall = known["wall_drag"].force(np.array([[0.0, 0, 0], [70.0, 0, 0]]), np.ones((2, 3)), np.ones((2, 3)),
                                     {**base, "c": 0.1, "ell": 5.0})
     assert np.allclose(wall[:, 0], [-0.1 * 5 / 80, -0.1 * 5 / 10])  # grows as 1/d towards the wall
+    so = known["step_out"].force(p, v, np.array([[10.0, 0, 0]] * 50), {**base, "f_so": 6.0})
+    assert np.allclose(so[:, 0], -0.2 * 8.0)  # spin 10 - sqrt(100 - 36) = 2 Hz instead of 10
     aniso = known["anisotropic_drag"].force(p, np.array([[1.0, 2.0, 0]] * 50), np.array([[5.0, 0, 0]] * 50),
                                             {**base, "c": 0.1})
     assert np.allclose(aniso, [0.0, -0.2, 0.0])  # only across the spin axis
