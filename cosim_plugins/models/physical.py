@@ -502,7 +502,8 @@ class PhysicalModel(Model):
                 for j in range(k):
                     x = self._step_t(x, Us[j, :, :w], h, theta)
                     out[j] = x[:3]
-                return (out.reshape(3 * k, w).T - target).reshape(-1)
+                r = (out.reshape(3 * k, w).T - target).reshape(-1)
+                return np.where(np.isfinite(r), r, DIVERGED_MM)
             x0 = X0
             for _ in range(passes):
                 x = np.concatenate([x0] + [x0 + e for e in eye]).T.copy()  # (6, 4w)
@@ -515,8 +516,16 @@ class PhysicalModel(Model):
                 S = np.empty((w, 3 * k, 6))
                 S[:, :, :3] = s_p
                 S[:, :, 3:] = ((out[1:] - out[0]) / dv).transpose(1, 2, 0)
-                G = np.einsum("wki,wkj->wij", S, S) + ridge
-                d = np.linalg.solve(G, -np.einsum("wki,wk->wi", S, r)[..., None])[..., 0]
+                with np.errstate(over="ignore", invalid="ignore"):
+                    G = np.einsum("wki,wkj->wij", S, S) + ridge
+                good = np.isfinite(r).all(axis=1) & np.isfinite(S).all(axis=(1, 2)) & np.isfinite(G).all(axis=(1, 2))
+                if not good.all():  # a rollout that blew up (a start or a trial step far off): no solve there
+                    r[~good], S[~good], G[~good] = DIVERGED_MM, 0.0, np.eye(6)
+                rhs = -np.einsum("wki,wk->wi", S, r)[..., None]
+                try:
+                    d = np.linalg.solve(G, rhs)[..., 0]
+                except np.linalg.LinAlgError:  # sensitivities so large that G is singular in floating point
+                    d = (np.linalg.pinv(G) @ rhs)[..., 0]
                 x0 = x0 + d
             return (r + np.einsum("wki,wi->wk", S, d)).reshape(-1)
 
@@ -549,6 +558,11 @@ class PhysicalModel(Model):
                                          meta.get("effect_terms", {}))
         self._theta = np.asarray(arrays["theta"], dtype=float)
         self.fit_info = meta.get("fit_info", {})
+
+
+#: The residual [mm] of every step of a window whose rollout blew up (overflow, NaN): far worse than any fit, finite
+#: so the optimiser rejects the step that caused it instead of failing on a singular solve.
+DIVERGED_MM = 1e3
 
 
 def _hold_factors(s: float, h: float, cd1) -> tuple[float, float, float]:

@@ -174,3 +174,17 @@ def test_exact_hold_steps_step_mean_velocities_exactly():
     assert errors["paper"] > 1e-3
     with pytest.raises(ValueError, match="hold"):
         PhysicalModel(hold="midpoint")
+
+
+def test_a_start_whose_rollouts_blow_up_is_passed_over(make_dataset, tmp_path):
+    """A start with a negative drag overflows the windows' rollouts: the fit ranks it last (its residuals
+    are DIVERGED_MM, not NaN or a singular solve) and refines the other start to the truth."""
+    ds = make_dataset(tmp_path, synthetic_plant(richer=False).predict, 800, seed=6, noise_mm=0.03)
+    model = PhysicalModel(max_windows=400)
+    names = [p.name for p in model.all_params()]
+    good = np.array([syn.TRUE_PARAMS[n] for n in names])
+    bad = good.copy()
+    bad[names.index("Cd1")] = -1e3  # out of bounds, the sure way to make every rollout overflow (e^1600 a step)
+    model._refine(ds, [bad, good])
+    assert model.fit_info["start"] == 1
+    assert model.params()["Cd1"] == pytest.approx(syn.TRUE_PARAMS["Cd1"], rel=0.05)
