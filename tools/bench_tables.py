@@ -412,7 +412,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s87", "seed 87 (multi only, the same code)"),
                  ("blind_groups_s88", "seed 88 (a step-out with the magnet's phase, 20f216e, reverted in 0d1e8f0)"),
                  ("blind_groups_s90", "seed 90 (multi only, 5a466d8: the diagnosis of 76fac38; 1 case failed, "
-                                      "mended in afb971f)"))
+                                      "mended in afb971f)"),
+                 ("blind_groups_s91", "seed 91 (fresh, e643ed0: the same diagnosis with that mend)"))
 
 
 def several_effects_table() -> str:
