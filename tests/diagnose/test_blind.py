@@ -41,7 +41,7 @@ CASES["rotating_flow"] = ("outside", "rotating_flow", {})
 # the slowest cases go first, so the two workers end together (seconds on one core: rotating_flow 145, with
 # discovery and the search on top of its form; step_out 36; gradient_force 31; each other case 20-24): started
 # last, the flow alone ran on for ~90 s after the other worker had finished
-SLOW_FIRST = ("rotating_flow", "gradient_force", "step_out")
+SLOW_FIRST = ("rotating_flow", "step_out", "gradient_force")
 
 
 def _diagnose(item):
