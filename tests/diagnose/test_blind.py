@@ -22,7 +22,6 @@ import pytest
 
 from cosim.contract import plugins
 from cosim_plugins.diagnose.pipeline import Settings, run
-from cosim_plugins.diagnose.stepwise import MAX_EFFECTS
 from cosim_plugins.identify.effect import known_effects, load_effect_files
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -54,8 +53,8 @@ def _diagnose(item):
     plugins.reset()
     # a library case is searched for one effect: its tests read the first round; a second round (every other
     # candidate refitted given it) took about half of its time
-    diag = run(logs, settings=Settings(discover=group == "outside", fit_windows=FIT_WINDOWS,
-                                       max_effects=1 if group == "library" else MAX_EFFECTS))
+    one = {"max_effects": 1} if group == "library" else {}
+    diag = run(logs, settings=Settings(discover=group == "outside", fit_windows=FIT_WINDOWS, **one))
     return name, diag.json, diag.discovered_source, [str(p) for p in logs]
 
 
