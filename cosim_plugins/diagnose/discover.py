@@ -3,8 +3,9 @@
 When no listed effect explains the error (or on ``cosim diagnose --discover``),
 the residual force is regressed on a library of candidate force terms
 (:data:`TERMS`: constants, position, velocity and command, |v| v, |u| u,
-position x command, drag near a wall, quadratic position terms; not the
-model's own drag, thrust and weight terms) by sparse regression: forward
+position x command, drag near a wall, quadratic position terms, and a turning
+about the vertical axis, (-y, x, 0), as one term; not the model's own drag,
+thrust and weight terms) by sparse regression: forward
 orthogonal least squares (FROLS, :func:`forward_selection`: one
 term at a time, the one that explains most of what is left), in the same
 output-error setting as the effect fits:
@@ -60,7 +61,9 @@ COLLINEAR = 1e-3  # a term whose part outside the chosen ones is below this shar
 
 @dataclass(frozen=True)
 class Term:
-    """A candidate force term: ``coef * feature(p, v, u)`` along ``axis`` (0, 1, 2).
+    """A candidate force term: ``coef * feature(p, v, u)`` along ``axis`` (0, 1, 2), and along each axis of
+    ``more`` ((axis, feature) pairs) with the same coefficient: a force with a direction of its own (the swirl's
+    (-y, x, 0) is one term, so that a turning of the water costs one coefficient, not two).
 
     ``expr`` is the feature as a numpy expression in the names of :func:`_namespace`
     (also written into the effect file), ``words`` its reading, ``unit`` the feature's unit.
@@ -71,10 +74,16 @@ class Term:
     words: str
     unit: str
     axis: int
+    more: tuple[tuple[int, str], ...] = ()
+
+    @property
+    def parts(self) -> tuple[tuple[int, str], ...]:
+        """((axis, feature expression), ...): the force's components."""
+        return ((self.axis, self.expr), *self.more)
 
     @property
     def name(self) -> str:
-        return f"f{AXES[self.axis]}_{self.key}"
+        return f"f{''.join(AXES[a] for a, _ in self.parts)}_{self.key}"
 
 
 def _library() -> list[Term]:
@@ -97,6 +106,8 @@ def _library() -> list[Term]:
         terms += [Term(f"{b}_u{c}", f"{b} * u{c}", f"{b} u_{c}", "mm Hz", a) for b in "xyz"]
         terms += [Term(f"v{c}_wall{ell}", f"v{c} * np.exp(-wall / {ell}.0)", f"v_{c} exp(-d/{ell} mm)", "mm/s", a)
                   for ell in (3, 10)]
+    # the water turning about the vertical axis through the origin (about another axis: this and the constants)
+    terms.append(Term("swirl", "-y", "(-y, x, 0)", "mm", 0, more=((1, "x"),)))
     return terms
 
 
@@ -156,7 +167,8 @@ def term_force(terms, coefs, p, v, u) -> np.ndarray:
     for t, c in zip(terms, coefs):
         if c != 0.0:
             ns = _LazyNamespace(p, v, u) if ns is None else ns
-            f[:, t.axis] += c * eval(_compiled(t.expr), {"np": np}, ns)  # noqa: S307 (this module's own table)
+            for a, expr in t.parts:
+                f[:, a] += c * eval(_compiled(expr), {"np": np}, ns)  # noqa: S307 (this module's own table)
     return f
 
 
@@ -267,7 +279,8 @@ def refit_form(terms, scales, coefs, fit_fn, path=()) -> dict:
     coefs = {t.name: fitted.params[f"discovered.{t.name}"]["value"] for t in terms}
     words = describe(terms, coefs, scales, fitted.model.prm)
     kind = pattern(terms, coefs, fitted.model.prm)
-    return {"status": "found", "terms": [t.name for t in terms], "expressions": {t.name: t.expr for t in terms},
+    return {"status": "found", "terms": [t.name for t in terms],
+            "expressions": {t.name: ", ".join(e for _, e in t.parts) for t in terms},
             "params": fitted.params, "words": words, "source": effect_source(terms, coefs, scales, words),
             "pattern": kind[0] if kind else None, "path": list(path), "fitted": fitted, "summary": summary,
             "ev": ev}
@@ -323,8 +336,8 @@ def _term_scales(tl, starts, length) -> np.ndarray:
     x = tl.x_lin[rows]
     u = np.nan_to_num(tl.u[rows])
     ns = _namespace(x[:, :3], x[:, 3:], u)
-    rms = np.array([float(np.sqrt(np.mean(np.asarray(eval(t.expr, ns), dtype=float) ** 2)))  # noqa: S307
-                    for t in TERMS])
+    rms = np.array([float(np.sqrt(np.mean(sum(np.asarray(eval(e, ns), dtype=float) ** 2  # noqa: S307
+                                              for _, e in t.parts)))) for t in TERMS])
     return 0.1 / np.maximum(rms, 1e-9)
 
 
@@ -358,11 +371,12 @@ def describe(terms, coefs: dict, scales, host_params: dict) -> list[str]:
     size = {t.name: abs(coefs[t.name]) / s for t, s in zip(terms, scales)}  # force at the typical size, x10 uN
     lines = []
     for a in range(3):
-        mine = sorted((t for t in terms if t.axis == a), key=lambda t: -size[t.name])
+        mine = sorted((t for t in terms if t.axis == a and not t.more), key=lambda t: -size[t.name])
         if mine:
             parts = [f"{coefs[t.name]:+.3g} {t.words if t.expr != 'one' else ''}".rstrip() for t in mine[:4]]
             more = f" (and {len(mine) - 4} smaller terms)" if len(mine) > 4 else ""
             lines.append(f"along {AXES[a]} the missing force is about {' '.join(parts)} uN{more}")
+    lines += [f"the missing force is about {coefs[t.name]:+.3g} {_coef_unit(t)} x {t.words}" for t in terms if t.more]
     reading = _reading(terms, coefs, host_params)
     if reading:
         lines.append(reading)
@@ -374,8 +388,11 @@ def _linear_parts(terms, coefs: dict) -> tuple[np.ndarray, np.ndarray, np.ndarra
     its constants, and its position x command terms along the command's own axis (f_a ~ G[a, b] p_b u_a)."""
     M, c0, G = np.zeros((3, 3)), np.zeros(3), np.zeros((3, 3))
     for t in terms:
-        if t.key in ("x", "y", "z"):
-            M[t.axis, "xyz".index(t.key)] = coefs[t.name]
+        if t.key == "swirl":
+            M[0, 1] -= coefs[t.name]
+            M[1, 0] += coefs[t.name]
+        elif t.key in ("x", "y", "z"):
+            M[t.axis, "xyz".index(t.key)] += coefs[t.name]
         elif t.key == "1":
             c0[t.axis] = coefs[t.name]
         elif t.key.endswith(f"_u{AXES[t.axis]}") and t.key[0] in "xyz":
@@ -501,11 +518,12 @@ def effect_source(terms, coefs: dict, scales, words) -> str:
         "    f = np.zeros_like(p, dtype=float)",
     ]
     del_unused = {"speed": "speed", "spin": "spin", "wall": "wall", "one": "one"}
-    used = " ".join(t.expr for t in terms)
+    used = " ".join(e for t in terms for _, e in t.parts)
     lines = [ln for ln in lines if not any(ln.strip().startswith(f"{k} =") and k not in used
                                            for k in del_unused)]
     for t in terms:
-        lines.append(f'    f[:, {t.axis}] += params["{t.name}"] * {t.expr}  # along {AXES[t.axis]}: {t.words}')
+        lines += [f'    f[:, {a}] += params["{t.name}"] * {"(" + e + ")" if e.startswith("-") else e}'
+                  f'  # along {AXES[a]}: {t.words}' for a, e in t.parts]
     lines += ["    return f", "", "", "DISCOVERED = Effect(", '    name="discovered",', "    params=("]
     for t, s in zip(terms, scales):
         lines.append(f'        EffectParam("{t.name}", {coefs[t.name]!r}, unit="{_coef_unit(t)}", scale={float(s)!r}),')

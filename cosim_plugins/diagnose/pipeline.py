@@ -304,8 +304,11 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                 _drop_stand_ins(result.stepwise, selection, gone)
                 result.fit_notes = fit_notes(result)
                 result.discovered, source, found_fit = discover_on(final)
-        stand_in = {d.effect for d in result.stepwise.dropped if d.given == "discovered"}
-        left = [e for e in candidates if e.name not in stand_in]
+        # a stand-in was judged against the form found without it, in its pass; the form found on what is left may
+        # not hold what it did: it competes again on top of that form (the same gates), unless it was the uniform
+        # part of the flow found (then the form holds it)
+        flow_parts = {d.effect for d in result.stepwise.dropped if d.given == "discovered" and d.part_of}
+        left = [e for e in candidates if e.name not in flow_parts]
         swap = ()
         if found_fit is not None and _discovered_passes(result.discovered):
             swap = in_place_of_terms(fitter, final, result.discovered, found_fit, left, floor[s.reference],

@@ -309,10 +309,12 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                          "at the tank's origin), so the two are one flow.")
             continue
         if d.given == "discovered":
-            parts.append(f"{d.effect} was dropped: it stands in for a form outside the library. Discovered without "
-                         f"it, that form leaves {d.effect} only {d.reduction:.0%} (t = {d.t_stat:.1f}), while it "
-                         f"still lowers the error by {d.form_reduction:.0%} (t = {d.form_t_stat:.1f}) once "
-                         f"{d.effect} is in.")
+            again = sw.given_discovered and d.effect in {m for st in sw.given_discovered.steps for m in st.effects}
+            parts.append(f"{d.effect} was {'set aside' if again else 'dropped'}: it stands in for a form outside the "
+                         f"library. Discovered without it, that form leaves {d.effect} only {d.reduction:.0%} "
+                         f"(t = {d.t_stat:.1f}), while it still lowers the error by {d.form_reduction:.0%} "
+                         f"(t = {d.form_t_stat:.1f}) once {d.effect} is in."
+                         + (" On top of the form found on what is left it passes again (below)." if again else ""))
             continue
         parts.append(f"{d.effect} was dropped once "
                      + ("the drift between the logs was allowed for" if d.given == "drift" else

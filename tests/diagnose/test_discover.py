@@ -71,6 +71,7 @@ def _form(**coefs):
 @pytest.mark.parametrize("coefs, kind, words", [
     ({"fx_1": 0.2, "fx_y": -0.01, "fy_x": 0.01}, "swirl", "turns about a vertical axis through about (+0, +20) mm"),
     ({"fx_1": 0.35, "fy_1": 0.15, "fx_y": -0.01, "fy_x": 0.01}, "swirl", "through about (-15, +35) mm"),
+    ({"fx_1": 0.35, "fy_1": 0.15, "fxy_swirl": 0.01}, "swirl", "through about (-15, +35) mm"),
     ({"fx_z": 0.006, "fy_z": 0.008}, "shear", "grows with height, pointing along (+0.60, +0.80) in (x, y): a shear "
                                               "flow (about 0.05 mm/s per mm of height)"),
     ({"fx_x_ux": 0.01}, "thrust", "the thrust along x changes with x by about +10 % per 10 mm"),
@@ -83,6 +84,24 @@ def test_a_form_is_read_as_the_physics_it_looks_like(coefs, kind, words):
     reading = D.describe(terms, c, np.ones(len(terms)), host)[-1]
     assert reading.startswith("reading:") and words in reading, reading
     assert D.pattern(terms, c, host)[0] == kind
+
+
+def test_the_swirl_term_is_the_turning_pair_with_one_coefficient(tmp_path, fresh_plugins):
+    """fxy_swirl = c is fx_y = -c with fy_x = +c: the same force at any point, in the regression's term and in the
+    effect file written for it."""
+    from cosim_plugins.identify.effect import known_effects, load_effect_files
+
+    rng = np.random.default_rng(5)
+    p, v, u = (rng.normal(0, 30, (50, 3)) for _ in range(3))
+    (swirl,), c, host = _form(fxy_swirl=0.02)
+    pair, cp, _ = _form(fx_y=-0.02, fy_x=0.02)
+    want = D.term_force(pair, list(cp.values()), p, v, u)
+    assert D.term_force([swirl], [0.02], p, v, u) == pytest.approx(want, abs=1e-12)
+    assert want[:, 2] == pytest.approx(0.0) and np.abs(want[:, :2]).max() > 0.5
+    path = tmp_path / "discovered_effect.py"
+    path.write_text(D.effect_source([swirl], c, [0.01], D.describe([swirl], c, [0.01], host)))
+    assert load_effect_files([path]) == ["discovered"]
+    assert known_effects()["discovered"].force(p, v, u, {"fxy_swirl": 0.02}) == pytest.approx(want, abs=1e-12)
 
 
 @pytest.mark.parametrize("coefs, push, point, inside", [
