@@ -252,9 +252,11 @@ def _stepwise_section(r: DiagnosisResult, key: str) -> list[str]:
         lines += ["", f"Round {n}, given {_given(sw, n)}: "
                   + ", ".join(f"{e.effect} {e.reduction:+.1%} (t = {e.t_stat:.1f})"
                               for e in entries if e.identifiable) + "."]
+    again = sw.named_on_top()
     for d in sw.dropped:
         by = {"drift": "the drift test", "discovered": "the stand-in check"}.get(d.given, "the backward check")
-        lines.append(f"- dropped by {by}: {d.effect} ({d.reduction:+.1%}, t = {d.t_stat:.1f})"
+        lines.append(f"- {'set aside' if d.effect in again else 'dropped'} by {by}: {d.effect} ({d.reduction:+.1%}, "
+                     f"t = {d.t_stat:.1f})"
                      + (f"; the form found without it ({', '.join(d.terms)}) lowers the error by "
                         f"{d.form_reduction:+.1%} (t = {d.form_t_stat:.1f}) given it"
                         if d.given == "discovered" else "")

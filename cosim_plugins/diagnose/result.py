@@ -243,6 +243,10 @@ class Stepwise:
     given_discovered: Stepwise | None = _optional()
     rounds_given: list[list[str]] | None = _optional()
 
+    def named_on_top(self) -> set[str]:
+        """The effects the search on top of the discovered form chose (each member of a group)."""
+        return {m for st in (self.given_discovered.steps if self.given_discovered else ()) for m in st.effects}
+
 
 @dataclass
 class DriftExplains:

@@ -309,7 +309,7 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                          "at the tank's origin), so the two are one flow.")
             continue
         if d.given == "discovered":
-            again = sw.given_discovered and d.effect in {m for st in sw.given_discovered.steps for m in st.effects}
+            again = d.effect in sw.named_on_top()
             parts.append(f"{d.effect} was {'set aside' if again else 'dropped'}: it stands in for a form outside the "
                          f"library. Discovered without it, that form leaves {d.effect} only {d.reduction:.0%} "
                          f"(t = {d.t_stat:.1f}), while it still lowers the error by {d.form_reduction:.0%} "

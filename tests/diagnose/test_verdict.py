@@ -192,6 +192,29 @@ def test_two_effects_named_in_order_with_the_joint_drop_and_a_dropped_one():
         "their model (components.estimator.params.model=MODEL.npz).")
 
 
+
+def test_a_stand_in_named_again_on_top_of_the_form_is_said_to_be_set_aside_not_dropped():
+    """A chosen force dropped by the stand-in check competes again on top of the form found on what is left: when
+    it passes there, the verdict names it and says it was set aside; when it does not, it was dropped."""
+    def with_stand_in(again):
+        r = result(2.0, 0.2, steps=[step("background_flow", 2.0, 1.0)], joint_left=1.0, discovered=found(0.5))
+        r["stepwise"]["dropped"] = [{"effect": "wall_drag", "reduction": 0.02, "t_stat": 0.5, "given": "discovered",
+                                     "terms": ["fx_z"], "form_reduction": 0.4, "form_t_stat": 6.0}]
+        if again:
+            r["stepwise"]["given_discovered"] = {
+                "steps": [step("wall_drag", 0.5, 0.3, t=6.0)],
+                "joint": {"effects": ["wall_drag"], "rollout_mm": {K: 0.3}, "reduction": {K: 0.4}}}
+        return verdict(r, K)
+
+    v = with_stand_in(True)
+    assert v["effects"] == ["background_flow", "wall_drag"]
+    assert ("wall_drag was set aside: it stands in for a form outside the library. Discovered without it, that form "
+            "leaves wall_drag only 2% (t = 0.5), while it still lowers the error by 40% (t = 6.0) once wall_drag is "
+            "in. On top of the form found on what is left it passes again (below).") in v["explanation"]
+    v = with_stand_in(False)
+    assert v["effects"] == ["background_flow"]
+    assert "wall_drag was dropped: it stands in" in v["explanation"] and "passes again" not in v["explanation"]
+
 # --- a tie: look-alikes are named as a group, never one member ---------------------------------------------------
 
 RIVAL = {"sensor_latency": {"t_stat": 1.2, "t_horizons": 0.8, "differ_mm": 0.05, "differ_log_mm": 0.09,
