@@ -367,16 +367,16 @@ def _sensitivities(jm, tl, windows, term_idx, host_idx, jobs: int = 1):
 
 
 def describe(terms, coefs: dict, scales, host_params: dict) -> list[str]:
-    """Sentences: the force along each axis, then the pattern they make (rotation, gradient, drift...)."""
+    """Sentences: the force of each term with a direction of its own (the swirl), the force along each axis, then
+    the pattern they make (rotation, gradient, drift...)."""
     size = {t.name: abs(coefs[t.name]) / s for t, s in zip(terms, scales)}  # force at the typical size, x10 uN
-    lines = []
+    lines = [f"the missing force is about {coefs[t.name]:+.3g} {_coef_unit(t)} x {t.words}" for t in terms if t.more]
     for a in range(3):
         mine = sorted((t for t in terms if t.axis == a and not t.more), key=lambda t: -size[t.name])
         if mine:
             parts = [f"{coefs[t.name]:+.3g} {t.words if t.expr != 'one' else ''}".rstrip() for t in mine[:4]]
             more = f" (and {len(mine) - 4} smaller terms)" if len(mine) > 4 else ""
             lines.append(f"along {AXES[a]} the missing force is about {' '.join(parts)} uN{more}")
-    lines += [f"the missing force is about {coefs[t.name]:+.3g} {_coef_unit(t)} x {t.words}" for t in terms if t.more]
     reading = _reading(terms, coefs, host_params)
     if reading:
         lines.append(reading)
