@@ -413,7 +413,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s88", "seed 88 (a step-out with the magnet's phase, 20f216e, reverted in 0d1e8f0)"),
                  ("blind_groups_s90", "seed 90 (multi only, 5a466d8: the diagnosis of 76fac38; 1 case failed, "
                                       "mended in afb971f)"),
-                 ("blind_groups_s91", "seed 91 (fresh, e643ed0: the same diagnosis with that mend)"))
+                 ("blind_groups_s91", "seed 91 (fresh, e643ed0: the same diagnosis with that mend)"),
+                 ("blind_groups_s92", "seed 92 (fresh, 9691f77: the swirl one term of the regression, a stand-in "
+                                      "competing again on top of the form)"))
 
 
 def several_effects_table() -> str:
