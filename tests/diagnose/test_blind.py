@@ -38,9 +38,9 @@ FOUND = [e for e in blind_sim.LIBRARY if e != "anisotropic_drag"]
 CASES = {name: ("library", name, HARD.get(name, {})) for name in FOUND}
 CASES["none"] = ("none", None, {})
 CASES["rotating_flow"] = ("outside", "rotating_flow", {})
-# the slowest cases go first, so the two workers end together (seconds on one core: rotating_flow 145, with
+# the slowest cases go first, so the two workers end together (seconds on one core: rotating_flow 69, with
 # discovery and the search on top of its form; step_out 36; gradient_force 31; each other case 20-24): started
-# last, the flow alone ran on for ~90 s after the other worker had finished
+# last, the flow alone ran on after the other worker had finished
 SLOW_FIRST = ("rotating_flow", "step_out", "gradient_force")
 
 
