@@ -192,7 +192,6 @@ def test_two_effects_named_in_order_with_the_joint_drop_and_a_dropped_one():
         "their model (components.estimator.params.model=MODEL.npz).")
 
 
-
 def test_a_stand_in_named_again_on_top_of_the_form_is_said_to_be_set_aside_not_dropped():
     """A chosen force dropped by the stand-in check competes again on top of the form found on what is left: when
     it passes there, the verdict names it and says it was set aside; when it does not, it was dropped."""
@@ -214,6 +213,7 @@ def test_a_stand_in_named_again_on_top_of_the_form_is_said_to_be_set_aside_not_d
     v = with_stand_in(False)
     assert v["effects"] == ["background_flow"]
     assert "wall_drag was dropped: it stands in" in v["explanation"] and "passes again" not in v["explanation"]
+
 
 # --- a tie: look-alikes are named as a group, never one member ---------------------------------------------------
 
