@@ -419,7 +419,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                                       "mended in afb971f)"),
                  ("blind_groups_s91", "seed 91 (fresh, e643ed0: the same diagnosis with that mend)"),
                  ("blind_groups_s92", "seed 92 (fresh, 9691f77: the swirl one term of the regression, a stand-in "
-                                      "competing again on top of the form)"))
+                                      "competing again on top of the form)"),
+                 ("blind_groups_s94", "seed 94 (fresh, 0940a22: a look-ahead's next candidate tried when its "
+                                      "first is dropped)"))
 
 
 def several_effects_table() -> str:
