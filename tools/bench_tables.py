@@ -183,13 +183,21 @@ def _blind(d: dict) -> str:
     o = d["output"]
     lib, none, out = o["library"], o["no_effect"], o["outside"]
     seed = o["seed"] if "seed" in o else re.search(r"--seed (\d+)", d["command"]).group(1)  # later runs print none
-    if not lib["cases"] and not none["cases"]:  # one group of the draw only (--only outside)
-        return (f"seed {seed}, its {out['cases']} outside cases only: discovered_ok {out['discovered_ok']:.3f} "
-                f"({out['time_varying']} varying in time not scored); {o['seconds_per_case']:g} s per case")
-    return (f"seed {seed}: top1 {lib['top1']:.3f} over all {lib['cases']} library cases, "
-            f"{lib['top1_detectable']:.3f} over the {lib['detectable']} detectable; ratio "
-            f"{lib['median_reduction_ratio']:.3f}; {none['false_alarms']} false alarms in {none['cases']}; "
-            f"discovered_ok {out['discovered_ok']:.3f}; {o['seconds_per_case']:g} s per case")
+    groups = (("library", lib), ("no-effect", none), ("outside", out))
+    ran = [(name, g["cases"]) for name, g in groups if g.get("cases")]
+    alone = len(ran) == 1  # one group of the draw only (--only GROUP)
+    parts = []
+    if lib["cases"]:
+        parts += [f"top1 {lib['top1']:.3f} over all {lib['cases']} library cases, {lib['top1_detectable']:.3f} over "
+                  f"the {lib['detectable']} detectable", f"ratio {lib['median_reduction_ratio']:.3f}"]
+    if none["cases"]:
+        parts.append(f"{none['false_alarms']} false alarms in {none['cases']}"
+                     + (f", {none['discovered_alarms']} discovered alarms" if alone else ""))
+    if out.get("cases", 1):  # the earliest runs did not count them
+        parts.append(f"discovered_ok {out['discovered_ok']:.3f}"
+                     + (f" ({out['time_varying']} varying in time not scored)" if alone else ""))
+    head = f"seed {seed}, its {ran[0][1]} {ran[0][0]} cases only: " if alone else f"seed {seed}: "
+    return head + "; ".join(parts) + f"; {o['seconds_per_case']:g} s per case"
 
 
 def _sweep_jobs(d: dict) -> str:
@@ -294,7 +302,7 @@ ROWS = (
         "top1 >= 0.9, ratio >= 0.7, no false alarm, discovered_ok >= 0.75",
         ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56",
          "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
-         "blind_s76", "blind_s78", "blind_s81", "blind_s83", "blind_s86", "blind_outside_s93"),
+         "blind_s76", "blind_s78", "blind_s81", "blind_s83", "blind_s86", "blind_outside_s93", "blind_none_s95"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
