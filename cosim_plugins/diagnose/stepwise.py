@@ -244,15 +244,15 @@ def _tentative(fitter, ahead: _Lookahead, steps: list, remaining: list, by_name:
                say) -> tuple[list, Fit, list] | None:
     """(steps, current model, remaining candidates) with the next candidate of the look-ahead's round taken
     tentatively, or None when there is none: the best not tried yet whose full fit lowers the error by at least
-    :data:`SCREEN_MIN`, at most :data:`LOOKAHEADS` in all. Two effects present
-    at once can each explain little alone and much together (the baseline's parameters take up the other's
-    absence): the step is kept only if the next round's choice passes given it and the two then earn their
-    places together (:func:`_confirmed`). The round's best is not always the way in: a step-out (3.9 %) and a
-    quadratic drag (0.3 %) lowered a case's error by 86 % together, but an anisotropic drag led the round
-    (4.6 %) and nothing passed given it; taken second, the step-out let the drag pass."""
+    :data:`SCREEN_MIN`, at most :data:`LOOKAHEADS` in all. Two effects present at once can each explain little
+    alone and much together (the baseline's parameters take up the other's absence): the step is kept only if
+    the next round's choice passes given it and the two then earn their places together (:func:`_confirmed`).
+    The round's best is not always the way in: a step-out (3.9 %) and a quadratic drag (0.3 %) lowered a case's
+    error by 86 % together, but an anisotropic drag led the round (4.6 %) and nothing passed given it; taken
+    second, the step-out let the drag pass."""
+    if len(ahead.tried) >= LOOKAHEADS:
+        return None
     for entry in ahead.entries:
-        if len(ahead.tried) >= LOOKAHEADS:
-            return None
         name = entry["effect"]
         if name in ahead.tried or not entry["identifiable"] or entry["reduction"] < SCREEN_MIN:
             continue
@@ -270,7 +270,7 @@ def _tentative(fitter, ahead: _Lookahead, steps: list, remaining: list, by_name:
     return None
 
 
-def _confirmed(fitter, steps: list, pending: tuple, by_name: dict, floor: float | None, key: str,
+def _confirmed(fitter, steps: list, pending: _Lookahead, by_name: dict, floor: float | None, key: str,
                say) -> tuple[bool, Fit]:
     """(whether a look-ahead's tentative step (``steps[pending.index]``) and the step just chosen given it (the last)
     earn their places together, the model refitted without the tentative step): the two lower the error of the
