@@ -77,7 +77,7 @@ from cosim_plugins.diagnose.result import (
     Stepwise,
 )
 from cosim_plugins.diagnose.standin import OWN_TERMS, in_place_of_terms, own_law_misfit, stand_ins
-from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, rank, select
+from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, groups_on_top, rank, select
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.diagnose.verdict import (
     MIN_REDUCTION,
@@ -328,6 +328,8 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                                            if not st.is_group and st.effects[0] in by_name],
                 floor[s.reference], s.reference, say)
         if found_fit is not None and (swap or discovered_explains(result, s.reference)):
+            found_fit = _groups_on_top(fitter, found_fit, selection, result.stepwise, by_name, s, floor, say)
+            groups = [st for st in selection.steps if st.is_group]
             given = _given_discovered(fitter, found_fit, left, selection, s, floor, say)
             if given is not None:
                 result.stepwise.given_discovered = stepwise_result(given, s.reference, s.max_effects)
@@ -401,24 +403,30 @@ def rank_entry(e: dict) -> RankEntry:
 
 def stepwise_result(sel: Selection, key: str, max_effects: int) -> Stepwise:
     """The stepwise search as the result holds it: every round's ranking (compact), the steps, the joint drop."""
-    def compact(e):
-        return RoundEntry(effect=e["effect"], rollout_mm=e["rollout_mm"][key], reduction=e["reduction"],
-                          t_stat=e["t_stat"], identifiable=e["identifiable"])
-
     return Stepwise(
         max_effects=max_effects, stop=sel.stop,
-        rounds=[[compact(e) for e in entries] for entries in sel.rounds],
-        steps=[StepResult(effects=st.effects, group=st.is_group, rollout_before_mm=st.before.error(key),
-                          rollout_mm=st.entry["rollout_mm"][key], reduction=st.entry["reduction"],
-                          t_stat=st.entry["t_stat"], params=st.entry["params"],
-                          group_evidence={m: GroupEvidence(**ev) for m, ev in st.group_evidence.items()},
-                          given=st.given if st.given is not None else [s.effects[0] for s in sel.steps[:i]],
-                          alone=compact(st.alone) if st.alone is not None else None)
-               for i, st in enumerate(sel.steps)],
+        rounds=[[_compact(e, key) for e in entries] for entries in sel.rounds],
+        steps=[step_result(sel, i, key) for i in range(len(sel.steps))],
         dropped=[Dropped(**d) for d in sel.dropped],
         joint=_joint(sel),
         rounds_given=sel.rounds_given,
     )
+
+
+def step_result(sel: Selection, i: int, key: str) -> StepResult:
+    """The search's step ``i`` as the result holds it."""
+    st = sel.steps[i]
+    return StepResult(effects=st.effects, group=st.is_group, rollout_before_mm=st.before.error(key),
+                      rollout_mm=st.entry["rollout_mm"][key], reduction=st.entry["reduction"],
+                      t_stat=st.entry["t_stat"], params=st.entry["params"],
+                      group_evidence={m: GroupEvidence(**ev) for m, ev in st.group_evidence.items()},
+                      given=st.given if st.given is not None else [s.effects[0] for s in sel.steps[:i]],
+                      alone=_compact(st.alone, key) if st.alone is not None else None)
+
+
+def _compact(e: dict, key: str) -> RoundEntry:
+    return RoundEntry(effect=e["effect"], rollout_mm=e["rollout_mm"][key], reduction=e["reduction"],
+                      t_stat=e["t_stat"], identifiable=e["identifiable"])
 
 
 def _joint(sel: Selection) -> Joint:
@@ -449,6 +457,26 @@ def _left_above_floor(result: DiagnosisResult, key: str) -> bool:
     if not sw.steps or not floor:
         return False
     return sw.joint.rollout_mm[key] > DISCOVER_ABOVE_FLOOR * floor
+
+
+def _groups_on_top(fitter: Fitter, found: Fit, selection: Selection, sw: Stepwise, by_name: dict, s: Settings,
+                   floor: dict, say) -> Fit:
+    """The search's look-alike groups weighed again given the discovered form (:func:`.stepwise.groups_on_top`;
+    ``found``: the chosen model with the form, its last effect): a group now named replaces its step in the
+    result (``sw``, in place). Returns the model with the form, with another member in the group's place when
+    one leads (``selection.final``, without the form, refitted with it too)."""
+    if not any(st.is_group for st in selection.steps):
+        return found
+    say("given the discovered form: the look-alike groups weighed again")
+    chosen = selection.chosen
+    named, found = groups_on_top(fitter.beside([found.model.effects[-1]]), selection, found, by_name,
+                                 floor[s.reference], s.reference, say)
+    for i in named:
+        sw.steps[i] = step_result(selection, i, s.reference)
+    if selection.chosen != chosen:
+        selection.final = fitter.without(found, [by_name[n] for n in selection.chosen])
+        sw.joint = _joint(selection)
+    return found
 
 
 def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selection, s: Settings, floor: dict,

@@ -23,6 +23,9 @@ from dataclasses import MISSING, dataclass, field, fields, is_dataclass
 from typing import Union, get_args, get_origin, get_type_hints
 
 Horizons = dict  # {horizon name: value}, see the module doc
+#: In a step's ``given`` and a dropped effect's: the discovered form (a step weighed given it; an effect standing in
+#: for it).
+DISCOVERED = "discovered"
 
 
 def _optional():
@@ -183,7 +186,8 @@ class StepResult:
     the errors at the reference horizon before and after it [mm], its ``reduction`` and ``t_stat`` against the
     model before, the best member's ``params``; ``group_evidence`` {rival: evidence} for a group; ``given`` the
     effects that drop is conditional on (the steps before it, or for a look-ahead's step the others; None in a
-    diagnosis.json written before it was kept: the steps before); ``alone`` a look-ahead's step's own entry,
+    diagnosis.json written before it was kept: the steps before; :data:`DISCOVERED` among them: a look-alike
+    group named given the discovered form, :func:`.stepwise.groups_on_top`); ``alone`` a look-ahead's step's own entry,
     which did not pass (:mod:`.stepwise`), else None."""
 
     effects: list
