@@ -42,7 +42,8 @@ model without each chosen effect in turn and drops an effect that no longer
 passes the gates against the model without it; a look-alike group, declared
 given the steps before it, is weighed again given all the others
 (:func:`_groups_given_others`): an effect chosen after it can tell its
-members apart.
+members apart. Once a form outside the library is discovered on what the
+search leaves, :func:`groups_on_top` weighs each group again given it too.
 """
 
 from __future__ import annotations
