@@ -430,7 +430,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s92", "seed 92 (fresh, 9691f77: the swirl one term of the regression, a stand-in "
                                       "competing again on top of the form)"),
                  ("blind_groups_s94", "seed 94 (fresh, 0940a22: a look-ahead's next candidate tried when its "
-                                      "first is dropped)"))
+                                      "first is dropped)"),
+                 ("blind_groups_s97", "seed 97 (fresh, 91e2eb0: a look-alike group weighed again given the "
+                                      "discovered form)"))
 
 
 def several_effects_table() -> str:
