@@ -432,7 +432,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s94", "seed 94 (fresh, 0940a22: a look-ahead's next candidate tried when its "
                                       "first is dropped)"),
                  ("blind_groups_s97", "seed 97 (fresh, 91e2eb0: a look-alike group weighed again given the "
-                                      "discovered form)"))
+                                      "discovered form)"),
+                 ("blind_groups_s99", "seed 99 (multi only, the same diagnosis; first run on an unlanded "
+                                      "variant with a looser share gate)"))
 
 
 def several_effects_table() -> str:
