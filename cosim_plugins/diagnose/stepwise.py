@@ -53,6 +53,7 @@ from dataclasses import dataclass, field, replace
 from cosim_plugins.diagnose.lookalike import FAMILIES, evidence_of, group_of
 from cosim_plugins.diagnose.result import DISCOVERED
 from cosim_plugins.diagnose.verdict import AT_FLOOR, MIN_REDUCTION, MIN_T, passes
+from cosim_plugins.diagnose.wording import given_words
 
 MAX_EFFECTS = 3  # default of --max-effects
 SCREEN_KEEP = 3  # rounds after the first: candidates given a full fit after the quick screen
@@ -329,8 +330,8 @@ def _given_family(fitter, step: Step, by_name: dict, floor: float | None, key: s
     rivals = [by_name[n] for n in sorted(family) if n != name and n in by_name and n not in taken]
     if not rivals:
         return step
-    given = ", ".join("the discovered form" if n == DISCOVERED else n for n in step.given)
-    say(f"  {name}'s look-alikes in its place, given {given}: {', '.join(e.name for e in rivals)}")
+    say(f"  {name}'s look-alikes in its place, given {given_words(step.given, ', ')}: "
+        f"{', '.join(e.name for e in rivals)}")
     entries, fits = [step.entry], {name: step.fit}
     for effect, (fit, identifiable) in zip(rivals, fitter.with_each(step.before, rivals)):
         entries.append(fitter.entry(effect, fit, identifiable, step.before))
@@ -506,11 +507,11 @@ def groups_on_top(fitter, sel: Selection, found: Fit, by_name: dict, floor: floa
             continue
         say(f"  given the discovered form, {weighed.effects[0]} leads {' ~ '.join(step.effects)} alone: named "
             f"({weighed.entry['reduction']:+.1%}, {t_text(weighed.entry)})")
-        sel.steps[i] = weighed
-        named.append(i)
         if weighed.effects[0] != step.effects[0]:
             found = fitter.refit(weighed.fit.model)
-            sel.steps[i] = replace(weighed, fit=found)
+            weighed = replace(weighed, fit=found)
+        sel.steps[i] = weighed
+        named.append(i)
     return named, found
 
 

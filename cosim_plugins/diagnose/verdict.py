@@ -32,8 +32,8 @@ from dataclasses import replace
 import numpy as np
 
 from cosim_plugins.diagnose.drift import sentence as drift_sentence
-from cosim_plugins.diagnose.result import DISCOVERED, DiagnosisResult, Verdict
-from cosim_plugins.diagnose.wording import params_text
+from cosim_plugins.diagnose.result import DiagnosisResult, Verdict
+from cosim_plugins.diagnose.wording import given_words, params_text
 
 MIN_REDUCTION = 0.10
 DISCOVERED_MARGIN = 0.3  # a discovered form is reported when it cuts the named effects' error by this share
@@ -275,7 +275,7 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
     parts = []
     for i, st in enumerate(sw.steps):
         on = st.given if st.given is not None else [s.effects[0] for s in sw.steps[:i]]
-        given = f" given {' and '.join('the discovered form' if n == DISCOVERED else n for n in on)}" if on else ""
+        given = f" given {given_words(on, ' and ')}" if on else ""
         share = explained_share(st.rollout_before_mm, st.rollout_mm, floor)
         drop = (f"the held-out error at {key} s falls from {st.rollout_before_mm:.2f} to {st.rollout_mm:.2f} mm"
                 f"{given} ({st.reduction:.0%}; t = {st.t_stat:.1f}"

@@ -8,6 +8,15 @@ from __future__ import annotations
 
 import math
 
+from cosim_plugins.diagnose.result import DISCOVERED
+
+
+def given_words(names, sep: str) -> str:
+    """What a drop is conditional on, in words: the effect names joined by ``sep``, the discovered form
+    (:data:`.result.DISCOVERED`) by name."""
+    return sep.join("the discovered form" if n == DISCOVERED else n for n in names)
+
+
 #: One line per figure of a diagnosis, for the report's legend and the printed one.
 GLOSSARY = {
     "held-out error": "mean distance [mm] between the predicted and the measured position after an open-loop "
