@@ -317,13 +317,14 @@ def _partner_alone(fitter, partner: Step, without: Fit, before: Fit, by_name: di
 
 
 def _given_family(fitter, step: Step, by_name: dict, floor: float | None, key: str, say) -> Step:
-    """A look-ahead's confirmed step with its look-alikes (:data:`.lookalike.FAMILIES`) weighed as a normal round
-    weighs them, but given the effects chosen with it (``step.before``): each look-alike is refitted in its
-    place, and a group is declared when the logs cannot tell them apart (:func:`.lookalike.group_of`), led by a
-    look-alike that explains more; a look-alike among those effects (``step.given``) is not weighed. ``step.fit`` is
-    the model with the step's effect and the others."""
+    """A look-ahead's confirmed step with its look-alikes weighed as a normal round weighs them, but given the
+    effects chosen with it (``step.before``): each look-alike (:data:`.lookalike.FAMILIES`, and the members of a
+    group the step already declares: a wall drag tied with a flow) is refitted in its place, and a group is
+    declared when the logs cannot tell them apart (:func:`.lookalike.group_of`), led by a look-alike that explains
+    more; a look-alike among those effects (``step.given``) is not weighed. ``step.fit`` is the model with the
+    step's effect and the others."""
     name = step.effects[0]
-    family = next((f for f in FAMILIES if name in f), ())
+    family = set(next((f for f in FAMILIES if name in f), ())) | set(step.effects)
     # a look-alike chosen as one of the other steps is already in the model: refitted in this step's place it
     # would stand in the model twice
     taken = set(step.given or ())
@@ -462,8 +463,6 @@ def _groups_given_others(fitter, sel: Selection, trials: list, by_name: dict, fl
         given = replace(step, entry=entry, before=without, given=others, fit=sel.final,
                         member_fits={step.effects[0]: sel.final})
         weighed = _given_family(fitter, given, by_name, floor, key, say)
-        if weighed is given:  # no look-alike family to weigh (a flow grouped with a wall drag): it stays as declared
-            continue
         sel.steps[i] = weighed
         if weighed.effects[0] == step.effects[0]:
             continue

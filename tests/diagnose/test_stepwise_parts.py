@@ -465,9 +465,11 @@ def test_a_look_alike_group_is_weighed_again_given_the_effects_chosen_after_it()
     assert sel.final.model.effects == {"actuation_lag", "background_flow"}
 
 
-def test_a_group_outside_the_look_alike_families_stays_as_declared():
+@pytest.mark.parametrize("wall_with_drag, named", [(0.3, False), (0.6, True)])
+def test_a_group_outside_the_look_alike_families_is_weighed_given_the_others(wall_with_drag, named):
     """A flow and a wall drag tie in the first round (a group outside the lag family), a quadratic drag is chosen
-    given them: weighed again given it, the group keeps both members and a fit for each (the experiment that
+    given them. Weighed again given the drag: when the wall drag then leaves twice the flow's error, the flow is
+    named alone; when the two still tie, the group keeps both members and a fit for each (the experiment that
     tells them apart is designed from those fits)."""
     from types import SimpleNamespace
 
@@ -475,11 +477,16 @@ def test_a_group_outside_the_look_alike_families_stays_as_declared():
 
     names = ("background_flow", "wall_drag", "quadratic_drag")
     fitter = _Told({(): 1.0, ("background_flow",): 0.6, ("wall_drag",): 0.601, ("quadratic_drag",): 0.9,
-                    ("background_flow", "quadratic_drag"): 0.3, ("background_flow", "wall_drag"): 0.6,
-                    ("background_flow", "wall_drag", "quadratic_drag"): 0.3})
+                    ("background_flow", "quadratic_drag"): 0.3, ("wall_drag", "quadratic_drag"): wall_with_drag,
+                    ("background_flow", "wall_drag"): 0.6, ("background_flow", "wall_drag", "quadratic_drag"): 0.3})
     effects = [SimpleNamespace(name=n) for n in names]
     start = fitter._fit(())
     sel = select(fitter, start, effects, rank(fitter, start, effects, "1.0"), 3, {"1.0": 0.1}, "1.0")
+    if named:
+        assert [s.effects for s in sel.steps] == [["background_flow"], ["quadratic_drag"]]
+        flow = sel.steps[0]
+        assert flow.given == ["quadratic_drag"] and flow.entry["reduction"] == pytest.approx(1.0 - 0.3 / 0.9)
+        return
     assert [s.effects for s in sel.steps] == [["background_flow", "wall_drag"], ["quadratic_drag"]]
     assert set(sel.steps[0].member_fits) == {"background_flow", "wall_drag"}
 
