@@ -77,7 +77,15 @@ from cosim_plugins.diagnose.result import (
     Stepwise,
 )
 from cosim_plugins.diagnose.standin import OWN_TERMS, in_place_of_terms, own_law_misfit, stand_ins
-from cosim_plugins.diagnose.stepwise import MAX_EFFECTS, Fit, Selection, groups_on_top, rank, select
+from cosim_plugins.diagnose.stepwise import (
+    MAX_EFFECTS,
+    Fit,
+    Selection,
+    groups_on_top,
+    left_after_removal,
+    rank,
+    select,
+)
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.diagnose.verdict import (
     MIN_REDUCTION,
@@ -299,9 +307,10 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
             gone = stand_ins(fitter, selection, by_name,
                              lambda fit, exclude: discover_on(fit, lambda m: None, exclude), floor[s.reference],
                              s.reference, say)
-            if gone:  # the form is discovered again on what the effects left leave
+            if gone:  # the others measured again given what is left; the form discovered again on what they leave
+                left_after_removal(fitter, selection, by_name, floor[s.reference], s.reference, say)
                 final = selection.final
-                _drop_stand_ins(result.stepwise, selection, gone)
+                _drop_stand_ins(result.stepwise, selection, gone, s.reference)
                 result.fit_notes = fit_notes(result)
                 result.discovered, source, found_fit = discover_on(final)
         # a stand-in was judged against the form found without it, in its pass; the form found on what is left may
@@ -442,12 +451,13 @@ def _discovered_passes(found: Discovered) -> bool:
     return found.status == "found" and found.reduction >= MIN_REDUCTION and found.t_stat >= MIN_T
 
 
-def _drop_stand_ins(sw: Stepwise, selection: Selection, gone: list) -> None:
+def _drop_stand_ins(sw: Stepwise, selection: Selection, gone: list, key: str) -> None:
     """The result's stepwise search without the stand-ins ``gone`` (:mod:`.standin`, already out of
-    ``selection``): its steps, its dropped effects and its joint model."""
-    names = {d.effect for d in gone}
-    sw.steps = [st for st in sw.steps if st.effects[0] not in names]
-    sw.dropped += gone
+    ``selection``, whose steps left were measured again, :func:`.stepwise.left_after_removal`): its steps, its
+    dropped effects (the stand-ins, then the steps that failed once they were out) and its joint model."""
+    failed = [Dropped(**d) for d in selection.dropped[len(sw.dropped):]]
+    sw.steps = [step_result(selection, i, key) for i in range(len(selection.steps))]
+    sw.dropped += [*gone, *failed]
     sw.joint = _joint(selection)
 
 

@@ -42,8 +42,9 @@ model without each chosen effect in turn and drops an effect that no longer
 passes the gates against the model without it; a look-alike group, declared
 given the steps before it, is weighed again given all the others
 (:func:`_groups_given_others`): an effect chosen after it can tell its
-members apart. Once a form outside the library is discovered on what the
-search leaves, :func:`groups_on_top` weighs each group again given it too.
+members apart (a lag from a latency, a wall drag from a uniform flow). Once
+a form outside the library is discovered on what the search leaves,
+:func:`groups_on_top` weighs each group again given it too.
 """
 
 from __future__ import annotations
@@ -430,21 +431,52 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
 def _backward(fitter, sel: Selection, by_name: dict, floor: float | None, key: str, say) -> None:
     """Drop, one at a time, a chosen effect that no longer earns its place once the others are in."""
     while len(sel.steps) >= 2:
-        trials = []
-        for i, step in enumerate(sel.steps):
-            keep = [by_name[s.effects[0]] for j, s in enumerate(sel.steps) if j != i]
-            without = fitter.without(sel.final, keep)
-            entry = fitter.entry(by_name[step.effects[0]], sel.final, True, without)
-            trials.append((entry["reduction"], i, entry, without))
-        reduction, i, entry, without = min(trials, key=lambda x: x[0])
-        if passes(entry, without.error(key), floor, key):
+        trials = _given_the_others(fitter, sel, by_name)
+        if not _drop_weakest(sel, trials, floor, key, say):
             _groups_given_others(fitter, sel, trials, by_name, floor, key, say)
             return
-        step = sel.steps.pop(i)
-        say(f"backward: {step.effects[0]} dropped (it lowers the error by only {reduction:+.1%}, t = "
-            f"{entry['t_stat']:.1f}, once the others are in)")
-        sel.dropped.append({"effect": step.effects[0], "reduction": reduction, "t_stat": entry["t_stat"]})
-        sel.final = without
+
+
+def _given_the_others(fitter, sel: Selection, by_name: dict) -> list:
+    """[(reduction, step index, entry, model without the step)]: each step's drop given every other step."""
+    trials = []
+    for i, step in enumerate(sel.steps):
+        keep = [by_name[s.effects[0]] for j, s in enumerate(sel.steps) if j != i]
+        without = fitter.without(sel.final, keep)
+        entry = fitter.entry(by_name[step.effects[0]], sel.final, True, without)
+        trials.append((entry["reduction"], i, entry, without))
+    return trials
+
+
+def _drop_weakest(sel: Selection, trials: list, floor: float | None, key: str, say) -> bool:
+    """True when the step with the smallest drop given the others (``trials``) fails the gates: it is dropped."""
+    reduction, i, entry, without = min(trials, key=lambda x: x[0])
+    if passes(entry, without.error(key), floor, key):
+        return False
+    step = sel.steps.pop(i)
+    say(f"backward: {step.effects[0]} dropped (it lowers the error by only {reduction:+.1%}, t = "
+        f"{entry['t_stat']:.1f}, once the others are in)")
+    sel.dropped.append({"effect": step.effects[0], "reduction": reduction, "t_stat": entry["t_stat"]})
+    sel.final = without
+    return True
+
+
+def left_after_removal(fitter, sel: Selection, by_name: dict, floor: float | None, key: str, say) -> None:
+    """The steps left once others were taken out of ``sel`` (stand-ins for a form outside the library), each
+    measured again given the other steps left (in place): a drop measured given an effect no longer in the model
+    is not one. A step that then fails the gates is dropped, weakest first, as the backward check drops one.
+    A background flow chosen first and a gradient force given it, the flow then dropped as a stand-in: the
+    force's drop given the flow said nothing of the force alone."""
+    while sel.steps:
+        trials = _given_the_others(fitter, sel, by_name)
+        if _drop_weakest(sel, trials, floor, key, say):
+            continue
+        for _, i, entry, without in trials:
+            step = sel.steps[i]
+            if not step.is_group:
+                sel.steps[i] = replace(step, entry=entry, before=without, fit=sel.final,
+                                       given=[s.effects[0] for j, s in enumerate(sel.steps) if j != i])
+        return
 
 
 def _groups_given_others(fitter, sel: Selection, trials: list, by_name: dict, floor: float | None, key: str,

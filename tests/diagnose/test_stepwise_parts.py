@@ -523,3 +523,34 @@ def test_a_look_alike_group_is_named_once_the_discovered_form_tells_its_members_
     assert got == [0] and step.effects == ["actuation_lag"] and step.given == ["discovered"]
     assert step.entry["reduction"] == pytest.approx(1.0 - 0.14 / 0.7) and step.before.error("1.0") == 0.7
     assert model.model.effects == {"actuation_lag", "swirl"} and step.fit is model
+
+
+@pytest.mark.parametrize("force_alone, named", [(0.95, []), (0.65, ["gradient_force"])])
+def test_an_effect_chosen_given_a_stand_in_is_measured_again_once_it_is_out(force_alone, named):
+    """A uniform flow chosen first (1.0 -> 0.6 mm) and a gradient force given it (0.6 -> 0.4 mm); the flow then
+    goes as a stand-in for a form outside the library. The force's drop given the flow says nothing of the force
+    without it: measured again against the model without either, a force that lowers the error by 5 % is dropped
+    (nothing is named), one that lowers it by 35 % stays, its drop given nothing."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import left_after_removal, rank, select
+
+    names = ("background_flow", "gradient_force")
+    fitter = _Told({(): 1.0, ("background_flow",): 0.6, ("gradient_force",): force_alone,
+                    ("background_flow", "gradient_force"): 0.4})
+    effects = [SimpleNamespace(name=n) for n in names]
+    by_name = {e.name: e for e in effects}
+    start = fitter._fit(())
+    sel = select(fitter, start, effects, rank(fitter, start, effects, "1.0"), 3, {"1.0": 0.1}, "1.0")
+    assert sel.chosen == ["background_flow", "gradient_force"]
+    sel.steps.pop(0)  # the stand-in goes (standin.stand_ins)
+    sel.final = fitter.without(sel.final, [by_name["gradient_force"]])
+    said = []
+    left_after_removal(fitter, sel, by_name, 0.1, "1.0", said.append)
+    assert sel.chosen == named
+    if not named:
+        assert sel.dropped[-1]["effect"] == "gradient_force" and sel.final.error("1.0") == 1.0
+        assert said[-1].startswith("backward: gradient_force dropped (it lowers the error by only +5.0%")
+        return
+    force, = sel.steps
+    assert force.given == [] and force.entry["reduction"] == pytest.approx(0.35) and force.before.error("1.0") == 1.0
