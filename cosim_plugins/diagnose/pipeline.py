@@ -308,7 +308,9 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                              lambda fit, exclude: discover_on(fit, lambda m: None, exclude), floor[s.reference],
                              s.reference, say)
             if gone:  # the others measured again given what is left; the form discovered again on what they leave
+                before = len(selection.dropped)
                 left_after_removal(fitter, selection, by_name, floor[s.reference], s.reference, say)
+                gone += [Dropped(**d) for d in selection.dropped[before:]]
                 final = selection.final
                 _drop_stand_ins(result.stepwise, selection, gone, s.reference)
                 result.fit_notes = fit_notes(result)
@@ -452,12 +454,11 @@ def _discovered_passes(found: Discovered) -> bool:
 
 
 def _drop_stand_ins(sw: Stepwise, selection: Selection, gone: list, key: str) -> None:
-    """The result's stepwise search without the stand-ins ``gone`` (:mod:`.standin`, already out of
-    ``selection``, whose steps left were measured again, :func:`.stepwise.left_after_removal`): its steps, its
-    dropped effects (the stand-ins, then the steps that failed once they were out) and its joint model."""
-    failed = [Dropped(**d) for d in selection.dropped[len(sw.dropped):]]
+    """The result's stepwise search as ``selection`` holds it once the stand-ins and the steps that failed
+    without them (``gone``, in that order: :mod:`.standin`, :func:`.stepwise.left_after_removal`) are out: its
+    steps, measured again, its dropped effects and its joint model."""
     sw.steps = [step_result(selection, i, key) for i in range(len(selection.steps))]
-    sw.dropped += [*gone, *failed]
+    sw.dropped += gone
     sw.joint = _joint(selection)
 
 
