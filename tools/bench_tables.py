@@ -436,7 +436,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                  ("blind_groups_s99", "seed 99 (multi only, the same diagnosis; first run on an unlanded "
                                       "variant with a looser share gate)"),
                  ("blind_groups_s100", "seed 100 (fresh, 190d3e0: a group outside the lags' family weighed given "
-                                       "the others, the effects left measured again once stand-ins are out)"))
+                                       "the others, the effects left measured again once stand-ins are out)"),
+                 ("blind_groups_s101", "seed 101 (fresh, multi only, the same diagnosis)"))
 
 
 def several_effects_table() -> str:
