@@ -308,9 +308,8 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                              lambda fit, exclude: discover_on(fit, lambda m: None, exclude), floor[s.reference],
                              s.reference, say)
             if gone:  # the others measured again given what is left; the form discovered again on what they leave
-                before = len(selection.dropped)
-                left_after_removal(fitter, selection, by_name, floor[s.reference], s.reference, say)
-                gone += [Dropped(**d) for d in selection.dropped[before:]]
+                failed = left_after_removal(fitter, selection, by_name, floor[s.reference], s.reference, say)
+                gone += [Dropped(**d) for d in failed]
                 final = selection.final
                 _drop_stand_ins(result.stepwise, selection, gone, s.reference)
                 result.fit_notes = fit_notes(result)

@@ -461,12 +461,14 @@ def _drop_weakest(sel: Selection, trials: list, floor: float | None, key: str, s
     return True
 
 
-def left_after_removal(fitter, sel: Selection, by_name: dict, floor: float | None, key: str, say) -> None:
+def left_after_removal(fitter, sel: Selection, by_name: dict, floor: float | None, key: str, say) -> list:
     """The steps left once others were taken out of ``sel`` (stand-ins for a form outside the library), each
     measured again given the other steps left (in place): a drop measured given an effect no longer in the model
-    is not one. A step that then fails the gates is dropped, weakest first, as the backward check drops one.
-    A background flow chosen first and a gradient force given it, the flow then dropped as a stand-in: the
-    force's drop given the flow said nothing of the force alone."""
+    is not one. A step that then fails the gates is dropped, weakest first, as the backward check drops one;
+    returns those drops (``sel.dropped``'s new entries). A background flow chosen first and a gradient force
+    given it, the flow then dropped as a stand-in: the force's drop given the flow said nothing of the force
+    alone."""
+    before = len(sel.dropped)
     while sel.steps:
         trials = _given_the_others(fitter, sel, by_name)
         if _drop_weakest(sel, trials, floor, key, say):
@@ -476,7 +478,8 @@ def left_after_removal(fitter, sel: Selection, by_name: dict, floor: float | Non
             if not step.is_group:
                 sel.steps[i] = replace(step, entry=entry, before=without, fit=sel.final,
                                        given=[s.effects[0] for j, s in enumerate(sel.steps) if j != i])
-        return
+        break
+    return sel.dropped[before:]
 
 
 def _groups_given_others(fitter, sel: Selection, trials: list, by_name: dict, floor: float | None, key: str,
