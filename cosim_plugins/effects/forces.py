@@ -126,34 +126,36 @@ STEP_OUT = Effect(
 # ---------------------------------------------------------------- gradient force
 
 _PAIR = ("b_x", "b_y", "b_z")
-_CROSS = ("c_xy", "c_xz", "c_yz")
 
 
 def _gradient_force(p, v, u, prm):
     f = _norm(u)
     a = u / _safe(f)
+    b = np.array([prm[n] for n in _PAIR])
     # pair k: (1 - a_k^2) b_k (2 x_k e_k - x_j e_j - x_l e_l); with s_k = (1 - a_k^2) b_k the force along i is
     # x_i (2 s_i - (s_j + s_l)) = x_i (3 s_i - sum(s))
-    s = (1.0 - a * a) * np.array([prm[n] for n in _PAIR])
+    s = (1.0 - a * a) * b
     pair = p * (3.0 * s - s.sum(axis=1, keepdims=True))
-    # pairs j, k: a_j a_k c_jk (x_k e_j + x_j e_k): along i, a_i sum_k c_ik a_k x_k (c symmetric, zero diagonal)
+    # pairs j, k together: a_j a_k (b_j + b_k) (x_k e_j + x_j e_k); along i, a_i sum_{k != i} (b_i + b_k) q_k with
+    # q = a x, which is a_i (b_i (sum(q) - 2 q_i) + sum(b q))
     q = a * p
-    c_xy, c_xz, c_yz = (prm[n] for n in _CROSS)
-    t = np.stack([c_xy * q[:, 1] + c_xz * q[:, 2], c_xy * q[:, 0] + c_yz * q[:, 2], c_xz * q[:, 0] + c_yz * q[:, 1]],
-                 axis=1)
+    t = b * (q.sum(axis=1, keepdims=True) - 2.0 * q) + (q * b).sum(axis=1, keepdims=True)
     return (f > 0.05) * (pair + a * t)  # the field is on when a spin is commanded
 
 
 GRADIENT_FORCE = Effect(
     name="gradient_force",
-    params=tuple(EffectParam(n, 0.0, -1.0, 1.0, "uN/mm", 3e-3) for n in (*_PAIR, *_CROSS)),
+    params=tuple(EffectParam(n, 0.0, -1.0, 1.0, "uN/mm", 3e-3) for n in _PAIR),
     force=_gradient_force,
     doc="The magnetic gradient force (m . grad) B of three orthogonal coil pairs: a magnet locked to the "
         "rotating field feels, averaged over a turn, m grad |B|, linear in position near the centre. "
-        "Pair k's field is axisymmetric, so (Laplace) |B_k| ~ 1 + a_k (x_k^2 - r^2 / 2), and it carries "
-        "the share 1 - u_k^2 of a field rotating about u_hat: F = sum_k (1 - u_k^2) b_k (2 x_k e_k - "
-        "x_j e_j - x_l e_l) + sum_{j<k} u_j u_k c_jk (x_k e_j + x_j e_k), b and c in uN/mm, while the "
-        "field is on (|u| > 0.05 Hz).",
+        "Pair k's field is axisymmetric (Laplace), so |B_k| ~ 1 + beta_k (x_k^2 - r^2 / 2) near the centre; a "
+        "field rotating about u_hat gives pair k the share 1 - u_k^2 and pairs j, k together the cross term "
+        "u_j u_k: F = sum_k (1 - u_k^2) b_k (2 x_k e_k - x_j e_j - x_l e_l) + sum_{j<k} u_j u_k (b_j + b_k) "
+        "(x_k e_j + x_j e_k), b [uN/mm] one gradient per "
+        "pair, while the field is on (|u| > 0.05 Hz). The cross terms' (b_j + b_k) is not a free coefficient: "
+        "the plant FMU's coil fields (six coils, turn-averaged m grad|B| within 40 mm of the centre) fit this "
+        "three-coefficient form as closely as one with the three cross coefficients free.",
 )
 
 

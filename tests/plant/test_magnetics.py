@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 from scipy.special import ellipe, ellipk
 
+from cosim_plugins.effects.forces import GRADIENT_FORCE
+
 
 @pytest.fixture(scope="module")
 def coil_fields(plant_fmu, tmp_path_factory):
@@ -24,9 +26,10 @@ def coil_fields(plant_fmu, tmp_path_factory):
     fn.argtypes = [dbl] * 5 + [ctypes.POINTER(dbl)] * 3
     fn.restype = None
 
-    def call(p):
+    def call(p, offset_m=0.150):
+        """(G (6, 3) [T/A], J (6, 3, 3) [T/(A m)]) of the six coils at p [m], each pair offset_m from the centre."""
         P, G, J = (dbl * 3)(*p), (dbl * 18)(), (dbl * 54)()
-        fn(795.0, 0.180, 0.215, 0.040, 0.150, P, G, J)
+        fn(795.0, 0.180, 0.215, 0.040, offset_m, P, G, J)
         return np.array(G).reshape(6, 3), np.array(J).reshape(6, 3, 3)
 
     return call
@@ -132,3 +135,56 @@ def test_current_lags_by_l_over_r(sim, helpers):
     ratio = lag["coil_current_amp"][k, 0] / instant["coil_current_amp"][k, 0]
     assert ratio == pytest.approx(1 - math.exp(-lag["t"][k] / tau), abs=0.05)
     assert instant["coil_current_amp"][1, 0] == pytest.approx(10 / helpers.R_COIL, rel=1e-9)
+
+
+def _turn_averaged_force(coil_fields, p, axis, offsets_m, phases=24):
+    """m grad|B| per unit m B0 [1/m], averaged over a turn of a unit field rotating about ``axis`` (3,) at p [m]:
+    pair k of the coils at offsets_m[k] [m] from the centre, its current normalised to a unit centre field."""
+    fields = [coil_fields(p, o) for o in offsets_m]
+    G = np.array([fields[k][0][2 * k + i] for k in range(3) for i in (0, 1)])   # (6, 3)
+    J = np.array([fields[k][1][2 * k + i] for k in range(3) for i in (0, 1)])   # (6, 3, 3)
+    centre = [coil_fields((0.0, 0.0, 0.0), o)[0] for o in offsets_m]
+    per_unit = np.array([centre[k][2 * k, k] + centre[k][2 * k + 1, k] for k in range(3)])
+    e1 = np.cross(axis, [0.0, 0.0, 1.0] if abs(axis[2]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    force = np.zeros(3)
+    for th in (np.arange(phases) + 0.5) * np.pi / phases:  # F(t + pi) = F(t): half a turn
+        current = np.repeat((math.cos(th) * e1 + math.sin(th) * e2) / per_unit, 2)
+        B, grad = current @ G, np.einsum("i,iab->ab", current, J)
+        force += grad.T @ B / np.linalg.norm(B)
+    return force / phases
+
+
+def test_the_gradient_force_cross_terms_follow_the_pairs_gradients(coil_fields):
+    """Three pairs at different spacings (so three different gradients): within 10 mm of the centre the coils'
+    turn-averaged m grad|B| is the library's three-coefficient form (cross terms u_j u_k (b_j + b_k)), which fits
+    as closely as one with the cross coefficients free, and the free fit's cross coefficients come out b_j + b_k."""
+    rng = np.random.default_rng(7)
+    offsets = (0.12, 0.15, 0.18)
+    p_mm = rng.uniform(-10.0, 10.0, (300, 3))
+    axes = rng.normal(size=(300, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    y = np.concatenate([_turn_averaged_force(coil_fields, p * 1e-3, a, offsets) * 1e-3 for p, a in zip(p_mm, axes)])
+    unit_b = [{n: float(n == m) for n in ("b_x", "b_y", "b_z")} for m in ("b_x", "b_y", "b_z")]
+    tied = np.stack([GRADIENT_FORCE.force(p_mm, None, 8.0 * axes, prm).ravel() for prm in unit_b], 1)
+    b, *_ = np.linalg.lstsq(tied, y, rcond=None)
+    misfit_tied = np.linalg.norm(y - tied @ b) / np.linalg.norm(y)
+    # the same pairs with the three cross coefficients free: (1 - u_k^2) (2 x_k e_k - x_j e_j - x_l e_l) and
+    # u_j u_k (x_k e_j + x_j e_k)
+    free = []
+    for k in range(3):
+        shape = np.full(3, -1.0)
+        shape[k] = 2.0
+        free.append(((1.0 - axes[:, k:k + 1] ** 2) * p_mm * shape).ravel())
+    for j, k in ((0, 1), (0, 2), (1, 2)):
+        col = np.zeros_like(p_mm)
+        col[:, j], col[:, k] = axes[:, j] * axes[:, k] * p_mm[:, k], axes[:, j] * axes[:, k] * p_mm[:, j]
+        free.append(col.ravel())
+    free = np.stack(free, 1)
+    x, *_ = np.linalg.lstsq(free, y, rcond=None)
+    misfit_free = np.linalg.norm(y - free @ x) / np.linalg.norm(y)
+    assert np.ptp(b) > 0.3 * np.abs(b).max(), b  # the three pairs' gradients do differ
+    assert misfit_tied < 0.01 and misfit_tied < misfit_free + 1e-3, (misfit_tied, misfit_free)
+    assert np.allclose(x[:3], b, rtol=0, atol=0.01 * np.abs(b).max())
+    assert np.allclose(x[3:], [b[0] + b[1], b[0] + b[2], b[1] + b[2]], rtol=0, atol=0.02 * np.abs(b).max()), x
