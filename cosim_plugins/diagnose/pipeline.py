@@ -81,6 +81,7 @@ from cosim_plugins.diagnose.stepwise import (
     MAX_EFFECTS,
     Fit,
     Selection,
+    given_later,
     groups_on_top,
     left_after_removal,
     rank,
@@ -311,7 +312,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                 failed = left_after_removal(fitter, selection, by_name, floor[s.reference], s.reference, say)
                 gone += [Dropped(**d) for d in failed]
                 final = selection.final
-                _drop_stand_ins(result.stepwise, selection, gone, s.reference)
+                _after_drops(result.stepwise, selection, gone, s.reference)
                 result.fit_notes = fit_notes(result)
                 result.discovered, source, found_fit = discover_on(final)
         # a stand-in was judged against the form found without it, in its pass; the form found on what is left may
@@ -341,6 +342,14 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
             found_fit = _groups_on_top(fitter, found_fit, selection, result.stepwise, by_name, s, floor, say)
             groups = [st for st in selection.steps if st.is_group]
             given = _given_discovered(fitter, found_fit, left, selection, s, floor, say)
+            if given is not None and given.steps:
+                failed = given_later(fitter.beside([found_fit.model.effects[-1]]), selection, given, by_name,
+                                     floor[s.reference], s.reference, say)
+                if failed:
+                    final = selection.final = fitter.without(selection.final,
+                                                             [by_name[n] for n in selection.chosen])
+                    _after_drops(result.stepwise, selection, [Dropped(**d, given="on_top") for d in failed],
+                                    s.reference)
             if given is not None:
                 result.stepwise.given_discovered = stepwise_result(given, s.reference, s.max_effects)
                 groups += [st for st in given.steps if st.is_group]
@@ -452,10 +461,11 @@ def _discovered_passes(found: Discovered) -> bool:
     return found.status == "found" and found.reduction >= MIN_REDUCTION and found.t_stat >= MIN_T
 
 
-def _drop_stand_ins(sw: Stepwise, selection: Selection, gone: list, key: str) -> None:
-    """The result's stepwise search as ``selection`` holds it once the stand-ins and the steps that failed
-    without them (``gone``, in that order: :mod:`.standin`, :func:`.stepwise.left_after_removal`) are out: its
-    steps, measured again, its dropped effects and its joint model."""
+def _after_drops(sw: Stepwise, selection: Selection, gone: list, key: str) -> None:
+    """The result's stepwise search as ``selection`` holds it once ``gone`` (Dropped) are out: the stand-ins and
+    the steps that failed without them (:mod:`.standin`, :func:`.stepwise.left_after_removal`), or the steps that
+    failed given the effects chosen on top of the discovered form (:func:`.stepwise.given_later`). Its steps,
+    measured again, its dropped effects and its joint model."""
     sw.steps = [step_result(selection, i, key) for i in range(len(selection.steps))]
     sw.dropped += gone
     sw.joint = _joint(selection)

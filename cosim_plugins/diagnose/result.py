@@ -204,7 +204,8 @@ class StepResult:
 
 @dataclass
 class Dropped:
-    """An effect the backward check took out again; ``given`` "drift": the drift test did, "discovered": it
+    """An effect the backward check took out again; ``given`` "drift": the drift test did, "on_top": it failed
+    given the discovered form and the effects chosen on top of it (:func:`.stepwise.given_later`), "discovered": it
     stands in for a form outside the library (:mod:`.standin`), whose ``terms`` were found without it and lower
     the error by ``form_reduction`` (paired t ``form_t_stat``) given it; ``part_of`` the pattern of that form
     (a "swirl" or "shear", :data:`.discover.FLOW_PATTERNS`) when the effect, a uniform flow, is its uniform part.

@@ -317,8 +317,9 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                          + (" On top of the form found on what is left it passes again (below)." if again else ""))
             continue
         parts.append(f"{d.effect} was dropped once "
-                     + ("the drift between the logs was allowed for" if d.given == "drift" else
-                        "the others were in")
+                     + {"drift": "the drift between the logs was allowed for",
+                        "on_top": "the discovered form and the effects named on top of it were in"}.get(
+                         d.given, "the others were in")
                      + f" (it then lowers the error by only {d.reduction:.0%}, t = {d.t_stat:.1f}).")
     return " ".join(parts)
 

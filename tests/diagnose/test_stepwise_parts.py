@@ -554,3 +554,40 @@ def test_an_effect_chosen_given_a_stand_in_is_measured_again_once_it_is_out(forc
         return
     force, = sel.steps
     assert force.given == [] and force.entry["reduction"] == pytest.approx(0.35) and force.before.error("1.0") == 1.0
+
+
+@pytest.mark.parametrize("lag_with_form, dropped", [(0.31, True), (0.5, False)])
+def test_an_effect_chosen_first_is_measured_again_given_those_chosen_on_top_of_the_form(lag_with_form, dropped):
+    """A heading lag chosen first (1.0 -> 0.75 mm) beside a thrust varying with position; the discovered form holds
+    the thrust (0.5 mm) and an actuation lag is chosen on top of both (0.3 mm). Given the form and the actuation lag
+    without the heading lag the error is ``lag_with_form``: at 0.31 mm the heading lag adds 3 % and is dropped (the
+    verdict's set is the actuation lag); at 0.5 mm it stays beside it."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import given_later, rank, select
+
+    errors = {(): 1.0, ("heading_lag",): 0.75, ("actuation_lag",): 0.9, ("heading_lag", "thrust"): 0.5,
+              ("actuation_lag", "heading_lag", "thrust"): 0.3, ("actuation_lag", "thrust"): lag_with_form}
+    effects = [SimpleNamespace(name=n) for n in ("heading_lag", "actuation_lag")]
+    by_name = {e.name: e for e in effects}
+    fitter = _Told(errors)
+    start = fitter._fit(())
+    sel = select(fitter, start, effects[:1], rank(fitter, start, effects[:1], "1.0"), 3, {"1.0": 0.1}, "1.0")
+    assert sel.chosen == ["heading_lag"]
+    on_top = _Told(errors)  # the search on top of the form keeps the form and the first choice in its models
+    on_top.without = lambda final, keep: on_top._fit({"thrust", "heading_lag", *(e.name for e in keep)})
+    found = on_top._fit({"heading_lag", "thrust"})
+    later = select(on_top, found, effects[1:], rank(on_top, found, effects[1:], "1.0"), 2, {"1.0": 0.1}, "1.0")
+    assert later.chosen == ["actuation_lag"] and later.final.error("1.0") == 0.3
+    form_kept = _Told(errors)  # given_later's fitter keeps only the form
+    form_kept.without = lambda final, keep: form_kept._fit({"thrust", *(e.name for e in keep)})
+    said = []
+    gone = given_later(form_kept, sel, later, by_name, 0.1, "1.0", said.append)
+    assert later.chosen == ["actuation_lag"] and later.dropped == []
+    if not dropped:
+        assert gone == [] and sel.chosen == ["heading_lag"] and later.final.error("1.0") == 0.3
+        return
+    assert sel.chosen == [] and [d["effect"] for d in gone] == ["heading_lag"]
+    assert gone[0]["reduction"] == pytest.approx(1.0 - 0.3 / 0.31)
+    assert later.final.error("1.0") == pytest.approx(0.31) and later.final.model.effects == {"actuation_lag", "thrust"}
+    assert said[-1].startswith("backward: heading_lag dropped (it lowers the error by only +3.2%")
