@@ -200,6 +200,14 @@ def _verdict(result: DiagnosisResult, key: str) -> Verdict:
         what = ("what they leave" if steps else "the error") + (
             "" if steps or best is None else f" (the best listed effect, {best.effect}, lowers it by only "
             f"{best.reduction:.0%})")
+        on_top = [d for d in sw.dropped if d.given == "on_top"]
+        if on_top and not steps:  # the form was found on what they left: its drop is against that
+            names = " and ".join(d.effect for d in on_top)
+            text = (f"{names}, chosen first, {'was' if len(on_top) == 1 else 'were'} dropped once the discovered "
+                    "form and the effects named on top of it were in ("
+                    + "; ".join(f"{d.effect} then lowers the error by only {d.reduction:+.1%}, t = {d.t_stat:.1f}"
+                                for d in on_top) + "). ")
+            what, left = f"what {names} left", found.rollout_mm[key] / (1.0 - found.reduction)
         text += (f"{' And a' if steps else 'A'} form outside the library explains {what}: a sparse combination "
                  f"of force terms lowers it by a further {found.reduction:.0%} (from {left:.2f} to "
                  f"{found.rollout_mm[key]:.2f} mm at {key} s; t = {found.t_stat:.1f}). "

@@ -152,10 +152,9 @@ GRADIENT_FORCE = Effect(
         "Pair k's field is axisymmetric (Laplace), so |B_k| ~ 1 + beta_k (x_k^2 - r^2 / 2) near the centre; a "
         "field rotating about u_hat gives pair k the share 1 - u_k^2 and pairs j, k together the cross term "
         "u_j u_k: F = sum_k (1 - u_k^2) b_k (2 x_k e_k - x_j e_j - x_l e_l) + sum_{j<k} u_j u_k (b_j + b_k) "
-        "(x_k e_j + x_j e_k), b [uN/mm] one gradient per "
-        "pair, while the field is on (|u| > 0.05 Hz). The cross terms' (b_j + b_k) is not a free coefficient: "
-        "the plant FMU's coil fields (six coils, turn-averaged m grad|B| within 40 mm of the centre) fit this "
-        "three-coefficient form as closely as one with the three cross coefficients free.",
+        "(x_k e_j + x_j e_k), b [uN/mm] one gradient per pair, while the field is on (|u| > 0.05 Hz). The "
+        "cross terms' b_j + b_k is no free coefficient: fitted free to the plant FMU's coil fields (three pairs "
+        "at different spacings, turn-averaged m grad|B| near the centre) they come out that sum.",
 )
 
 
