@@ -437,7 +437,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                                       "variant with a looser share gate)"),
                  ("blind_groups_s100", "seed 100 (fresh, 190d3e0: a group outside the lags' family weighed given "
                                        "the others, the effects left measured again once stand-ins are out)"),
-                 ("blind_groups_s101", "seed 101 (fresh, multi only, the same diagnosis)"))
+                 ("blind_groups_s101", "seed 101 (fresh, multi only, the same diagnosis)"),
+    ("blind_groups_s102", "seed 102 (fresh, 33f4167: the gradient force's cross terms tied to its pairs, the "
+                          "first choices measured again given those on top of the form)"))
 
 
 def several_effects_table() -> str:
