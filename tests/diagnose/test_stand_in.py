@@ -2,11 +2,11 @@
 
 Logs of the independent simulator (``benchmarks/blind_sim.py``: the seed-55 blind bench's multi_000): the coils'
 gradient force and the water turning about a vertical axis 16 mm off the centre (no library effect). The
-stepwise search names the gradient force, then a uniform flow, which takes up the turning flow's mean over the
-paths; discovery finds the turning in what the two leave. Discovered without the uniform flow, the form is a swirl
-that takes its place (the flow then adds almost nothing) and still adds much once the flow is in: the uniform part
-of the swirl, dropped. Found again with the constants, the swirl's axis is where the simulator put it. The gradient
-force keeps its place given the form found without it.
+stepwise search names the gradient force. A uniform flow takes up part of the turning flow's mean over the paths,
+but given the force it removes too small a share of what is left (18 %, t = 6.0), so it is not named and cannot
+stand in; discovery finds the turning, with its uniform part, in what the force leaves, where the simulator put
+its axis, and the force keeps its place given that form. (With the force's cross terms free, the flow passed
+given it and was then dropped as the swirl's uniform part: the unit tests below pin that path.)
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import blind_sim  # noqa: E402
 KEY = "1.0"
 
 
-def test_a_uniform_flow_standing_in_for_a_turning_one_is_dropped(tmp_path):
+def test_a_turning_flow_beside_a_gradient_force_is_found_with_its_uniform_part(tmp_path):
     case = blind_sim.draw_multi_case(294117217, ("gradient_force", "rotating_flow"), index=0)
     assert case.truth["rotating_flow"]["x0_mm"] == pytest.approx(-16.24, abs=0.01)
     logs = blind_sim.simulate(case, tmp_path / "logs")
@@ -38,16 +38,9 @@ def test_a_uniform_flow_standing_in_for_a_turning_one_is_dropped(tmp_path):
                                        discover=True, fit_windows=300)).json
     sw = diag["stepwise"]
     assert sw["rounds"][0][0]["effect"] == "gradient_force"
-    dropped = {d["effect"]: d for d in sw["dropped"]}
-    assert set(dropped) == {"background_flow"}
-    stand_in = dropped["background_flow"]
-    assert stand_in["given"] == "discovered"
-    assert stand_in["reduction"] < 0.10 and stand_in["form_reduction"] > 0.25
-    assert diag["verdict"]["effects"] == ["gradient_force"]
-    assert diag["discovered"]["status"] == "found"
-    assert stand_in["part_of"] == "swirl"
-    assert "the uniform part of a swirl flow" in diag["verdict"]["explanation"]
-    assert diag["discovered"]["pattern"] == "swirl" and {"fx_1", "fy_1"} <= set(diag["discovered"]["terms"])
+    assert diag["verdict"]["effects"] == ["gradient_force"] and sw["dropped"] == []
+    assert diag["discovered"]["status"] == "found" and diag["discovered"]["pattern"] == "swirl"
+    assert {"fx_1", "fy_1"} <= set(diag["discovered"]["terms"])  # the swirl carries its uniform part
     axis = re.search(r"through about \(([-+]\d+), ([-+]\d+)\) mm", diag["discovered"]["words"][-1])
     # truth (-16.2, +2.6) mm; the sparse terms chosen move it by a few mm: (-17, +3) with the first-order
     # integration, (-13, +3) with the second-order one (an xz and an xx term taken in beside the swirl), (-12, +2)
