@@ -439,7 +439,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                                        "the others, the effects left measured again once stand-ins are out)"),
                  ("blind_groups_s101", "seed 101 (fresh, multi only, the same diagnosis)"),
     ("blind_groups_s102", "seed 102 (fresh, 33f4167: the gradient force's cross terms tied to its pairs, the "
-                          "first choices measured again given those on top of the form)"))
+                          "first choices measured again given those on top of the form)"),
+    ("blind_groups_s103", "seed 103 (fresh, multi only, 73eb11f: the same diagnosis)"))
 
 
 def several_effects_table() -> str:
