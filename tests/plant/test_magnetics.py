@@ -137,14 +137,19 @@ def test_current_lags_by_l_over_r(sim, helpers):
     assert instant["coil_current_amp"][1, 0] == pytest.approx(10 / helpers.R_COIL, rel=1e-9)
 
 
-def _turn_averaged_force(coil_fields, p, axis, offsets_m, phases=24):
+def _pair_centre_fields(coil_fields, offsets_m):
+    """(3,) [T/A]: pair k's field along its axis at the centre, its coils offsets_m[k] [m] from it."""
+    centre = [coil_fields((0.0, 0.0, 0.0), o)[0] for o in offsets_m]
+    return np.array([centre[k][2 * k, k] + centre[k][2 * k + 1, k] for k in range(3)])
+
+
+def _turn_averaged_force(coil_fields, p, axis, offsets_m, per_unit, phases=24):
     """m grad|B| per unit m B0 [1/m], averaged over a turn of a unit field rotating about ``axis`` (3,) at p [m]:
-    pair k of the coils at offsets_m[k] [m] from the centre, its current normalised to a unit centre field."""
+    pair k of the coils at offsets_m[k] [m] from the centre, its current over per_unit[k] (its centre field per
+    ampere, :func:`_pair_centre_fields`) for a unit centre field."""
     fields = [coil_fields(p, o) for o in offsets_m]
     G = np.array([fields[k][0][2 * k + i] for k in range(3) for i in (0, 1)])   # (6, 3)
     J = np.array([fields[k][1][2 * k + i] for k in range(3) for i in (0, 1)])   # (6, 3, 3)
-    centre = [coil_fields((0.0, 0.0, 0.0), o)[0] for o in offsets_m]
-    per_unit = np.array([centre[k][2 * k, k] + centre[k][2 * k + 1, k] for k in range(3)])
     e1 = np.cross(axis, [0.0, 0.0, 1.0] if abs(axis[2]) < 0.9 else [1.0, 0.0, 0.0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(axis, e1)
@@ -165,7 +170,9 @@ def test_the_gradient_force_cross_terms_follow_the_pairs_gradients(coil_fields):
     p_mm = rng.uniform(-10.0, 10.0, (300, 3))
     axes = rng.normal(size=(300, 3))
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-    y = np.concatenate([_turn_averaged_force(coil_fields, p * 1e-3, a, offsets) * 1e-3 for p, a in zip(p_mm, axes)])
+    per_unit = _pair_centre_fields(coil_fields, offsets)
+    y = np.concatenate([_turn_averaged_force(coil_fields, p * 1e-3, a, offsets, per_unit) * 1e-3
+                        for p, a in zip(p_mm, axes)])
     unit_b = [{n: float(n == m) for n in ("b_x", "b_y", "b_z")} for m in ("b_x", "b_y", "b_z")]
     tied = np.stack([GRADIENT_FORCE.force(p_mm, None, 8.0 * axes, prm).ravel() for prm in unit_b], 1)
     b, *_ = np.linalg.lstsq(tied, y, rcond=None)
