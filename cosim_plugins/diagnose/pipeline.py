@@ -76,7 +76,7 @@ from cosim_plugins.diagnose.result import (
     StepResult,
     Stepwise,
 )
-from cosim_plugins.diagnose.standin import OWN_TERMS, in_place_of_terms, own_law_misfit, stand_ins
+from cosim_plugins.diagnose.standin import holds_own_form, in_place_of_terms, own_law_misfit, stand_ins
 from cosim_plugins.diagnose.stepwise import (
     MAX_EFFECTS,
     Fit,
@@ -509,7 +509,7 @@ def _given_discovered(fitter: Fitter, found: Fit, candidates, selection: Selecti
     in_form = set(found.model.effects[-1].terms or ())
     # a candidate whose own terms are all in the form is in it already (the uniform part of a swirl)
     left = [e for e in candidates if e.name not in taken
-            and not (OWN_TERMS.get(e.name) and in_form.issuperset(OWN_TERMS[e.name]))]
+            and not holds_own_form(e.name, in_form)]
     room = s.max_effects - len(selection.steps)
     if not left or room < 1:
         return None
@@ -591,16 +591,16 @@ def _discover_about(about: Fit, final: Fit, ttr, tte, test_starts, s, fitter, sa
     """:func:`_discover`, linearised and refitted about the model ``about``, its drop measured against ``final``."""
     from cosim_plugins.diagnose.discover import NO_FORM, discover, refit_form
 
-    held = {}
+    held = {}  # {the form's term names: its Fit}: a flow's form is refitted as forces and as a flow
 
     def refit(effect):  # its coefficients start at the linearised regression's: no other start is needed
         fit, _ = fitter.with_effects(about, [effect], fresh=False)
-        held["fit"] = fit
+        held[effect.terms] = fit
         return fit.fitted, fit.summary, fit.ev
 
     test = OpenLoop.upto(test_starts, train.lead, max(train.steps))
     found = (discover(about.model, ttr, tte, train, test, refit, say, jobs=s.jobs, exclude=exclude) if form is None
-             else refit_form(*form, refit))
+             else refit_form(*form, refit, say=say))
     if found["status"] != "found":
         return Discovered(**found), None, None
     summ, ev = found.pop("summary"), found.pop("ev")
@@ -624,7 +624,7 @@ def _discover_about(about: Fit, final: Fit, ttr, tte, test_starts, s, fitter, sa
         return Discovered(status="none", explanation=f"{NO_FORM} (the sparse form chosen on the linearised problem "
                           f"lowers it by {found['reduction']:.0%} once refitted, t = {found['t_stat']:.1f})",
                           terms=found["terms"]), None, None
-    return Discovered(**found), source, held.get("fit")
+    return Discovered(**found), source, held.get(tuple(found["terms"]))
 
 
 # ---------------------------------------------------------------- data

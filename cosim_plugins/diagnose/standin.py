@@ -53,20 +53,28 @@ from dataclasses import replace
 
 import numpy as np
 
-from cosim_plugins.diagnose.discover import FLOW_PATTERNS, TERMS, holds_uniform_part, library_effect, term_force
+from cosim_plugins.diagnose.discover import FLOW_PATTERNS, TERM_TABLE, holds_uniform_part, library_effect, term_force
 from cosim_plugins.diagnose.result import Dropped
 from cosim_plugins.diagnose.verdict import passes
 
-#: Discovery terms (:data:`.discover.TERMS`) that express a library force's own form or its look-alike: a uniform
+#: Discovery terms (:data:`.discover.TERM_TABLE`) that express a library force's own form or its look-alike: a uniform
 #: flow's force is nearly a constant (Cd1 w: the angle terms' change is small); a quadratic drag is -c |v| v, and
 #: since the speed follows the spin rate along a path, |u| u looks the same; a wall drag is v times a decay with the
 #: distance to the wall. Discovered without the force, they would only find it again, so the form that tests it may
 #: not use them.
 OWN_TERMS = {
-    "background_flow": ("fx_1", "fy_1"),
+    "background_flow": ("fx_1", "fy_1", "wx_1", "wy_1"),  # as a force or as the water's velocity
     "quadratic_drag": tuple(f"f{c}_{k}_{q}{c}" for c in "xyz" for k, q in (("speed", "v"), ("spin", "u"))),
     "wall_drag": tuple(f"f{c}_v{c}_wall{ell}" for c in "xyz" for ell in (3, 10)),
 }
+
+
+def holds_own_form(name: str, terms) -> bool:
+    """Whether the discovered ``terms`` (names) hold every own term (:data:`OWN_TERMS`) of the effect ``name``,
+    as forces or as the water's velocity (``fx_1, fy_1`` or ``wx_1, wy_1`` for a uniform flow)."""
+    own = OWN_TERMS.get(name, ())
+    kinds = {n[0] for n in own}
+    return any({n for n in own if n[0] == k} <= set(terms) for k in kinds)
 
 
 def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None, key: str, say) -> list:
@@ -208,7 +216,7 @@ def matched_start(effect, tl, terms, coefs, host: dict, rows: int = 2000) -> dic
     x, u = tl.x_lin[at], tl.u[at]
     ok = np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(u), axis=1)
     p, v, u = x[ok, :3], x[ok, 3:], u[ok]
-    target = term_force(terms, coefs, p, v, u)
+    target = term_force(terms, coefs, p, v, u, host)
     names = [q.name for q in effect.params]
     lo, hi = np.array([q.lo for q in effect.params]), np.array([q.hi for q in effect.params])
 
@@ -234,7 +242,7 @@ def _uniform_part(fit, flow: str | None, form) -> bool:
     push = (np.zeros(2) if flow is None else
             prm.get("Cd1", 0.0) * np.array([prm[f"{flow}.w_x"], prm[f"{flow}.w_y"]]))
     return holds_uniform_part([_term(n) for n in form.terms], {n: prm[f"{form.name}.{n}"] for n in form.terms},
-                              push)
+                              push, prm)
 
 
 def _part_of(form, params, prm: dict):
@@ -245,4 +253,4 @@ def _part_of(form, params, prm: dict):
 
 
 def _term(name: str):
-    return next(t for t in TERMS if t.name == name)
+    return TERM_TABLE[name]

@@ -208,8 +208,11 @@ def _verdict(result: DiagnosisResult, key: str) -> Verdict:
                     + "; ".join(f"{d.effect} then lowers the error by only {d.reduction:+.1%}, t = {d.t_stat:.1f}"
                                 for d in on_top) + "). ")
             what, left = f"what {names} left", found.rollout_mm[key] / (1.0 - found.reduction)
+        # a flow term's name: w<axes>_<feature>
+        terms = "force terms and a flow of the water" if any(n.startswith("w") for n in found.terms or ()) \
+            else "force terms"
         text += (f"{' And a' if steps else 'A'} form outside the library explains {what}: a sparse combination "
-                 f"of force terms lowers it by a further {found.reduction:.0%} (from {left:.2f} to "
+                 f"of {terms} lowers it by a further {found.reduction:.0%} (from {left:.2f} to "
                  f"{found.rollout_mm[key]:.2f} mm at {key} s; t = {found.t_stat:.1f}). "
                  + _sentence("; ".join(found.words)) + f". It is written to {found.file}: rename it, edit its "
                  f"form and refit with --effects-file {found.file} --add discovered." + _given_text(result, key))

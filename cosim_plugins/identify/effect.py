@@ -327,8 +327,7 @@ def restore_effects(names, sources: dict, library: dict | None = None) -> list[E
 def _library_from_data(name: str, entry) -> Effect:
     """A discovered effect from its stored term names and scales (coefficients come with the model's
     parameters); unknown term names raise a UserError."""
-    terms_table, library_effect = term_library()
-    table = {t.name: t for t in terms_table}
+    table, library_effect = term_library()
     try:
         names = [str(n) for n in entry["terms"]]
         scales = [float(s) for s in entry["scales"]]
@@ -342,7 +341,7 @@ def _library_from_data(name: str, entry) -> Effect:
 
 
 def term_library():
-    """(TERMS, library_effect) of the module of candidate terms, :mod:`discover` (in
+    """({term name: Term}, library_effect) of the module of candidate terms, :mod:`discover` (in
     ``cosim_plugins.diagnose`` since diagnose has a package of its own; ``cosim_plugins.identify`` before)."""
     import importlib
 
@@ -351,7 +350,7 @@ def term_library():
             module = importlib.import_module(name)
         except ModuleNotFoundError:
             continue
-        return module.TERMS, module.library_effect
+        return module.TERM_TABLE, module.library_effect
     raise UserError("the table of candidate terms (cosim_plugins.diagnose.discover) is not installed")
 
 

@@ -172,3 +172,56 @@ def test_a_form_hidden_by_a_sluggish_baseline_is_found_about_another_time_consta
     assert found["reduction"] >= 0.7 and found["t_stat"] >= 3.0
     axis = re.search(r"axis through about \(([-+\d.]+), ([-+\d.]+)\) mm", " ".join(found["words"]))
     assert abs(float(axis.group(1)) + 26.0) <= 4.0 and abs(float(axis.group(2)) - 11.3) <= 4.0, found["words"]
+
+
+def test_a_flow_term_is_the_water_velocity_acting_through_the_drag(tmp_path, fresh_plugins):
+    """A flow term's coefficient is the water's velocity w (mm/s per the feature's unit), its force H(v - w) - H(v)
+    through the host's drag and lift. With an isotropic linear drag that is Cd1 w, the force term of coefficient
+    Cd1 x the flow's; with a drag across the body (Cd0) it turns with the heading, which no force term does. The
+    reading is the same physics in either units, and the effect file written for a flow form gives its force."""
+    from cosim_plugins.identify.effect import known_effects, load_effect_files
+    from cosim_plugins.models.physical import hydrodynamic_force
+
+    rng = np.random.default_rng(7)
+    p, v, u = rng.normal(0, 30, (60, 3)), rng.normal(0, 10, (60, 3)), rng.normal(0, 8, (60, 3))
+    flows = [D.TERM_TABLE[n] for n in ("wx_1", "wx_z", "wxy_swirl")]
+    forces = [D.TERM_TABLE[n] for n in ("fx_1", "fx_z", "fxy_swirl")]
+    w_coefs = [0.5, -0.08, 0.03]  # mm/s, 1/s, rad/s
+    linear = {"Cd1": 0.2, "Cd0": 0.0, "Cl0": 0.0}
+    assert D.term_force(flows, w_coefs, p, v, u, linear) == pytest.approx(
+        D.term_force(forces, [0.2 * c for c in w_coefs], p, v, u), abs=1e-12)
+    host = {"Cd1": 0.2, "Cd0": 0.3, "Cl0": 0.05, "k": 1.0}
+    w = np.zeros_like(p)
+    w[:, 0] = 0.5 - 0.08 * p[:, 2] - 0.03 * p[:, 1]
+    w[:, 1] = 0.03 * p[:, 0]
+    want = hydrodynamic_force(v - w, u, host) - hydrodynamic_force(v, u, host)
+    assert D.term_force(flows, w_coefs, p, v, u, host) == pytest.approx(want, abs=1e-12)
+    assert np.abs(want - D.term_force(forces, [0.2 * c for c in w_coefs], p, v, u)).max() > 0.1
+    with pytest.raises(ValueError, match="drag parameters"):
+        D.term_force(flows, w_coefs, p, v, u)
+    shear = [D.TERM_TABLE["wx_z"], D.TERM_TABLE["wy_z"]]
+    c = {"wx_z": 0.03, "wy_z": 0.04}
+    words = D.describe(shear, c, [0.01, 0.01], host)
+    assert D.pattern(shear, c, host)[0] == "shear"
+    assert "a shear flow (about 0.05 mm/s per mm of height)" in words[-1], words
+    assert "along x the water's velocity is about +0.03 z mm/s" in words
+    path = tmp_path / "discovered_effect.py"
+    path.write_text(D.effect_source(flows, dict(zip([t.name for t in flows], w_coefs)), [1.0, 0.01, 0.01], words))
+    assert load_effect_files([path]) == ["discovered"]
+    got = known_effects()["discovered"].force(p, v, u, {**host, **{t.name: c for t, c in zip(flows, w_coefs)}})
+    assert got == pytest.approx(want, abs=1e-12)
+
+
+def test_a_flow_form_is_its_force_form_over_the_drag_and_holds_its_uniform_part_alike():
+    """:func:`as_flow` reads the horizontal constant, linear and swirl terms as the water's velocity (the force over
+    Cd1 + Cd0 / 2) and leaves the others as forces; the point where the flow vanishes is where its force does."""
+    terms, c, _ = _form(fx_1=0.35, fy_1=0.15, fxy_swirl=0.01, fz_z=0.002)
+    host = {"Cd1": 0.2, "Cd0": 0.2, "k": 1.0}
+    flow, scales, coefs = D.as_flow(terms, np.ones(4), np.array(list(c.values())), host)
+    assert [t.name for t in flow] == ["wx_1", "wy_1", "wxy_swirl", "fz_z"]
+    assert coefs == pytest.approx([0.35 / 0.3, 0.15 / 0.3, 0.01 / 0.3, 0.002]) and scales[3] == 1.0
+    named = dict(zip([t.name for t in flow], coefs))
+    assert D.stagnation(flow, named, host=host) == pytest.approx(D.stagnation(terms, c), abs=1e-9)
+    assert D.stagnation(flow, named, host=host) == pytest.approx((-15.0, 35.0, 0.0), abs=1e-9)
+    assert D.as_flow(flow, scales, coefs, host) is None  # nothing left to read as a flow
+    assert D.as_flow(terms, np.ones(4), np.array(list(c.values())), {"k": 1.0}) is None  # no drag

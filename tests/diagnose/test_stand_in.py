@@ -40,7 +40,8 @@ def test_a_turning_flow_beside_a_gradient_force_is_found_with_its_uniform_part(t
     assert sw["rounds"][0][0]["effect"] == "gradient_force"
     assert diag["verdict"]["effects"] == ["gradient_force"] and sw["dropped"] == []
     assert diag["discovered"]["status"] == "found" and diag["discovered"]["pattern"] == "swirl"
-    assert {"fx_1", "fy_1"} <= set(diag["discovered"]["terms"])  # the swirl carries its uniform part
+    # the swirl carries its uniform part; it is refitted as the water's velocity, acting through the drag and lift
+    assert {"wx_1", "wy_1", "wxy_swirl"} <= set(diag["discovered"]["terms"]), diag["discovered"]["terms"]
     axis = re.search(r"through about \(([-+]\d+), ([-+]\d+)\) mm", diag["discovered"]["words"][-1])
     # truth (-16.2, +2.6) mm; the sparse terms chosen move it by a few mm: (-17, +3) with the first-order
     # integration, (-13, +3) with the second-order one (an xz and an xx term taken in beside the swirl), (-12, +2)
