@@ -3,9 +3,10 @@
 When no listed effect explains the error (or on ``cosim diagnose --discover``),
 the residual force is regressed on a library of candidate force terms
 (:data:`TERMS`: constants, position, velocity and command, |v| v, |u| u,
-position x command, drag near a wall, quadratic position terms, and a turning
-about the vertical axis, (-y, x, 0), as one term; not the model's own drag,
-thrust and weight terms) by sparse regression: forward
+position x command, drag near a wall, quadratic position terms, a turning
+about the vertical axis, (-y, x, 0), as one term, and the thrust scaled along
+each axis, x_b u, as one term each; not the model's own drag, thrust and
+weight terms) by sparse regression: forward
 orthogonal least squares (FROLS, :func:`forward_selection`: one
 term at a time, the one that explains most of what is left), in the same
 output-error setting as the effect fits:
@@ -19,8 +20,10 @@ output-error setting as the effect fits:
 2. forward selection fits the training windows' open-loop errors with
    1, 2, ... :data:`MAX_TERMS` terms; the number of terms is chosen on the
    *held-out* windows (the sparsest form that keeps 80 % of the largest drop
-   of held-out error); a linearised drop that is not significant (paired t
-   over blocks of windows below the verdict's MIN_T) is refitted all
+   of held-out error, then the path's further terms while each lowers it by
+   :data:`TERM_MIN_GAIN` with a significant paired t); a linearised drop
+   that is not significant (paired t over blocks of windows below the
+   verdict's MIN_T) is refitted all
    the same, and the caller keeps it only when the refit passes the verdict's
    tests: the linearisation about a baseline that two missing effects pull
    far off can understate a form several times (11 % linearised against
@@ -52,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim_plugins.diagnose.rebuild import rebuilt
-from cosim_plugins.diagnose.verdict import BLOCK_S, paired_t
+from cosim_plugins.diagnose.verdict import BLOCK_S, MIN_T, paired_t
 from cosim_plugins.identify.effect import Effect, EffectParam
 from cosim_plugins.models.physical import hydrodynamic_force
 
@@ -63,6 +66,10 @@ MIN_TRAIN_WINDOWS = 300
 MIN_TEST_WINDOWS = 60
 MAX_TEST_WINDOWS = 400  # held-out windows of the regression (an even sample)
 CHOICE_TOLERANCE = 0.2  # sparsest form keeping 80 % of the best held-out gain
+# ... and the path's next terms while each lowers the held-out error by this share, paired t >= MIN_T: a thrust
+# changing along x, y and z beside a missing actuation lag was chosen as x u and y u (80 % of the gain); given the
+# lag, the z u left out made the form leave 1.0 mm instead of 0.2 (the lag hidden under it)
+TERM_MIN_GAIN = 0.05
 MAX_TERMS = 12  # a form with more terms is not an explanation
 NO_FORM = ("no combination of the candidate terms lowers the held-out error significantly: what is left looks like "
            "noise, or a form the candidates cannot express (a time-varying disturbance, a delay)")
@@ -119,6 +126,10 @@ def _library() -> list[Term]:
                   for ell in (3, 10)]
     # the water turning about the vertical axis through the origin (about another axis: this and the constants)
     terms.append(Term("swirl", "-y", "(-y, x, 0)", "mm", 0, more=((1, "x"),)))
+    # the thrust scaled by a factor that changes along b (a field whose strength varies with position): x_b u along
+    # u, one coefficient for the three axes (as per-axis terms a thrust changing along x took up to three)
+    terms += [Term(f"{b}_u", f"{b} * ux", f"{b} u (along the command)", "mm Hz", 0,
+                   more=((1, f"{b} * uy"), (2, f"{b} * uz"))) for b in "xyz"]
     return terms
 
 
@@ -298,15 +309,14 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
         xi[cols[sel]] = coef
         eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]  # host adjustment for these terms
         path.append((len(sel), _rms(r_te - J_te @ xi - H_te @ eta), xi))
-    best_err = min(e for _, e, _ in path)
-    # the held-out windows' error is mostly camera noise: compare gains, not errors
-    enough = best_err + CHOICE_TOLERANCE * (base_err - best_err)
-    n_sel, err_sel, xi = min((p for p in path if p[1] <= enough), key=lambda p: (p[0], p[1]))
-    eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ xi, rcond=None)[0]
-    t = paired_t({"valid": np.ones(len(test_win), bool), "err": r_te.reshape(len(test_win), -1)},
-                 {"valid": np.ones(len(test_win), bool),
-                  "err": (r_te - J_te @ xi - H_te @ eta).reshape(len(test_win), -1)},
-                 test_win, max(1, int(round(BLOCK_S / ttr.dt_s))))
+    block = max(1, int(round(BLOCK_S / ttr.dt_s)))
+
+    def held_out(coefs):  # the held-out windows' errors left by the terms' coefficients (the host adjusted)
+        eta = np.linalg.lstsq(H_tr, r_tr - J_tr @ coefs, rcond=None)[0]
+        return _errors(r_te - J_te @ coefs - H_te @ eta, len(test_win))
+
+    n_sel, err_sel, xi = path[form_size(path, lambda a, b: paired_t(held_out(a), held_out(b), test_win, block))]
+    t = paired_t(_errors(r_te, len(test_win)), held_out(xi), test_win, block)
     say(f"discover: {n_sel} terms chosen on held-out windows (linearised rms {base_err:.4f} -> {err_sel:.4f} mm, "
         f"t = {t:.1f})")
     if n_sel == 0 or err_sel >= base_err:
@@ -324,6 +334,21 @@ def discover(reference, ttr, tte, train, test, fit_fn, say=None, jobs: int = 1, 
                        flow_host=reference.prm if kind and kind[0] in FLOW_PATTERNS else None, say=say)
     found["linear_t"] = t  # below the verdict's MIN_T: the refit must pass its tests itself (the caller checks)
     return found
+
+
+def form_size(path: list, gain_t) -> int:
+    """The number of terms of the forward selection's ``path`` ([(k terms, held-out rms [mm], coefficients)] for
+    k = 0, 1, ...) that the form takes: the sparsest that keeps 1 - :data:`CHOICE_TOLERANCE` of the largest drop of
+    held-out error (the held-out windows' error is mostly camera noise: compare gains, not errors), then each
+    further term of the path that lowers the held-out error by :data:`TERM_MIN_GAIN` with ``gain_t(coefficients
+    before, coefficients after)``, the paired t of its gain, >= MIN_T."""
+    base_err, best_err = path[0][1], min(e for _, e, _ in path)
+    enough = best_err + CHOICE_TOLERANCE * (base_err - best_err)
+    n = min((p for p in path if p[1] <= enough), key=lambda p: (p[0], p[1]))[0]
+    while (n + 1 < len(path) and path[n + 1][1] <= (1.0 - TERM_MIN_GAIN) * path[n][1]
+           and gain_t(path[n][2], path[n + 1][2]) >= MIN_T):
+        n += 1
+    return n
 
 
 def refit_form(terms, scales, coefs, fit_fn, path=(), flow_host: dict | None = None, say=None) -> dict:
@@ -357,6 +382,11 @@ def _total(summary: dict) -> float:
     """Held-out error summed over the horizons [mm] (inf when a horizon has none)."""
     errs = list(summary["rollout_mm"].values())
     return float(sum(errs)) if errs and all(e is not None and np.isfinite(e) for e in errs) else np.inf
+
+
+def _errors(r: np.ndarray, windows: int) -> dict:
+    """Residuals ``r`` of ``windows`` held-out windows as an evaluation (``valid``, ``err`` (windows, -1))."""
+    return {"valid": np.ones(windows, bool), "err": r.reshape(windows, -1)}
 
 
 def _rms(r: np.ndarray) -> float:
@@ -476,7 +506,9 @@ def _linear_parts(terms, coefs: dict, cd1: float = 1.0) -> tuple[np.ndarray, np.
         elif t.key == "1":
             c0[t.axis] = c
         elif t.key.endswith(f"_u{AXES[t.axis]}") and t.key[0] in "xyz":
-            G[t.axis, "xyz".index(t.key[0])] = coefs[t.name]
+            G[t.axis, "xyz".index(t.key[0])] += c
+        elif t.key.endswith("_u") and t.key[0] in "xyz":  # along the command itself, on every axis
+            G[:, "xyz".index(t.key[0])] += c
     return M, c0, G
 
 
@@ -496,7 +528,8 @@ def pattern(terms, coefs: dict, host: dict) -> tuple[str, dict] | None:
         return "swirl", {"rot": rot, "centre": centre}
     if np.abs(G).max() > 0 and k > 0 and np.abs(G).max() * 40 >= 0.05 * k:
         a, b = np.unravel_index(np.argmax(np.abs(G)), G.shape)
-        return "thrust", {"along": AXES[a], "with": AXES[b], "per_10mm": G[a, b] * 10 / k}
+        return "thrust", {"along": AXES[a], "with": AXES[b], "per_10mm": G[a, b] * 10 / k,
+                          "row_per_10mm": G[a] * 10 / k}
     if np.abs(M[:2, 2]).max() > 2 * max(np.abs(M[:2, :2]).max(), 1e-300):
         return "shear", {"g": M[:2, 2]}
     if np.abs(S).max() > 0 and np.abs(S).max() >= 2 * np.abs(A).max():
@@ -554,6 +587,10 @@ def _reading(terms, coefs: dict, host: dict) -> str | None:
         spin = f", the water turning at about {f['rot'] / cd1:+.3g} rad/s" if cd1 > 0 else ""
         return (f"reading: the horizontal force turns about a vertical axis through about "
                 f"({centre[0]:+.0f}, {centre[1]:+.0f}) mm (a rotation about z{spin}: a swirl of the water)")
+    if kind == "thrust" and any(t.key.endswith("_u") for t in terms):  # a factor on the thrust, one per axis
+        g = 100 * f["row_per_10mm"]
+        return (f"reading: the thrust changes with position by about ({g[0]:+.2g}, {g[1]:+.2g}, {g[2]:+.2g}) % per "
+                "10 mm along (x, y, z): the propulsion varies with position (a non-uniform field)")
     if kind == "thrust":
         return (f"reading: the thrust along {f['along']} changes with {f['with']} by about "
                 f"{100 * f['per_10mm']:+.2g} % per 10 mm: the propulsion varies with position (a non-uniform "

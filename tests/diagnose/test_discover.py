@@ -75,6 +75,8 @@ def _form(**coefs):
     ({"fx_z": 0.006, "fy_z": 0.008}, "shear", "grows with height, pointing along (+0.60, +0.80) in (x, y): a shear "
                                               "flow (about 0.05 mm/s per mm of height)"),
     ({"fx_x_ux": 0.01}, "thrust", "the thrust along x changes with x by about +10 % per 10 mm"),
+    ({"fxyz_y_u": -0.02, "fxyz_z_u": 0.005}, "thrust", "the thrust changes with position by about (+0, -20, +5) % "
+                                                        "per 10 mm along (x, y, z)"),
     ({"fx_1": 0.1, "fy_1": -0.05}, "push", "a steady horizontal push (a drift of the water of about (+0.5, -0.25) "
                                            "mm/s)"),
 ])
@@ -225,3 +227,21 @@ def test_a_flow_form_is_its_force_form_over_the_drag_and_holds_its_uniform_part_
     assert D.stagnation(flow, named, host=host) == pytest.approx((-15.0, 35.0, 0.0), abs=1e-9)
     assert D.as_flow(flow, scales, coefs, host) is None  # nothing left to read as a flow
     assert D.as_flow(terms, np.ones(4), np.array(list(c.values())), {"k": 1.0}) is None  # no drag
+
+
+def test_the_form_takes_further_terms_only_while_each_earns_its_place_on_held_out_windows():
+    """The sparsest form keeping 80 % of the largest held-out gain, then each next term of the path whose own
+    gain is >= 5 % of the error with a paired t >= 3: a thrust changing along x, y and z was taken as x u and y u
+    alone, and the actuation lag beside it showed only once z u was in too."""
+    path = [(k, err, np.full(1, float(k))) for k, err in enumerate((0.95, 0.67, 0.55, 0.485, 0.474, 0.47))]
+    t_of = {(1, 2): 9.0, (2, 3): 5.0, (3, 4): 6.0, (4, 5): 1.0}
+    asked = []
+
+    def gain_t(before, after):
+        asked.append((int(before[0]), int(after[0])))
+        return t_of[asked[-1]]
+
+    assert D.form_size(path, gain_t) == 3  # 80 %: 2 terms; the third's gain is 12 %, t = 5; the fourth's only 2 %
+    assert asked == [(2, 3)]
+    t_of[(2, 3)] = 2.0  # the same gain, not significant: not taken
+    assert D.form_size(path, gain_t) == 2
