@@ -100,21 +100,23 @@ def test_trust_runs_the_carried_code_from_memory_not_from_a_shared_folder(swirl_
 
 
 def test_a_discovered_effect_is_stored_as_terms_and_coefficients(tmp_path):
-    """No source in the file; a fresh process rebuilds it from the term table and predicts the same."""
+    """No source in the file; a fresh process rebuilds it from the term table and predicts the same: force terms
+    and a flow term (the water's velocity, through the model's drag)."""
     from cosim_plugins.identify.effect import term_library
     from cosim_plugins.models.physical import PhysicalModel
 
-    TERMS, library_effect = term_library()
+    table, library_effect = term_library()
 
-    terms = [TERMS[0], TERMS[3]]
-    effect = library_effect(terms, np.array([0.5, 0.2]), coefs=[0.01, -0.02])
-    model = PhysicalModel.from_params({"k": 0.2, "Cd1": 0.07, f"discovered.{terms[0].name}": 0.01,
-                                       f"discovered.{terms[1].name}": -0.02}, terms=[effect])
+    terms = [table["fx_1"], table["fy_y"], table["wx_z"]]
+    coefs = [0.01, -0.02, 0.3]
+    effect = library_effect(terms, np.array([0.5, 0.2, 0.1]), coefs=coefs)
+    model = PhysicalModel.from_params({"k": 0.2, "Cd1": 0.07, "Cd0": 0.05,
+                                       **{f"discovered.{t.name}": c for t, c in zip(terms, coefs)}}, terms=[effect])
     path = model.save(tmp_path / "found.npz")
     with np.load(path, allow_pickle=False) as z:
         meta = json.loads(str(z["__meta__"]))["meta"]
     assert meta["effect_sources"] == {}
-    assert meta["effect_terms"]["discovered"]["terms"] == [terms[0].name, terms[1].name]
+    assert meta["effect_terms"]["discovered"]["terms"] == ["fx_1", "fy_y", "wx_z"]
     rc, out = _open_in_fresh_process(path)
     assert rc == 0 and "LOADED ['discovered']" in out, out
     want = model.predict(np.array([10., -20., 5., 1., 2., 0.]), np.array([3., 0., 4.]), 0.02)[0]
