@@ -442,7 +442,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                           "first choices measured again given those on top of the form)"),
     ("blind_groups_s103", "seed 103 (fresh, multi only, 73eb11f: the same diagnosis)"),
     ("blind_groups_s105", "seed 105 (fresh, multi only, 06b83d9: a flow's form refitted as the water's velocity, "
-                          "the thrust's factor one term per axis, further terms earning their place)"))
+                          "the thrust's factor one term per axis, further terms earning their place)"),
+    ("blind_groups_s106", "seed 106 (fresh, multi only, 06b83d9: the same diagnosis)"))
 
 
 def several_effects_table() -> str:
