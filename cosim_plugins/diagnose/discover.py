@@ -246,12 +246,11 @@ def as_flow(terms, scales, coefs, host: dict) -> tuple[list, np.ndarray, np.ndar
     drag = host.get("Cd1", 0.0) + 0.5 * host.get("Cd0", 0.0)
     if not drag > 0.0:
         return None
-    out = [(None if t.flow else _FLOW_OF.get((t.key, t.axis)), s, c) for t, s, c in zip(terms, scales, coefs)]
-    if not any(f is not None for f, _, _ in out):
+    flows = [None if t.flow else _FLOW_OF.get((t.key, t.axis)) for t in terms]
+    if not any(flows):
         return None
-    return ([f or t for (f, _, _), t in zip(out, terms)],
-            np.array([s / drag if f else s for f, s, _ in out]),
-            np.array([c / drag if f else c for f, _, c in out]))
+    per = np.array([1.0 / drag if f else 1.0 for f in flows])  # a flow term's coefficient: the force over the drag
+    return [f or t for f, t in zip(flows, terms)], np.asarray(scales) * per, np.asarray(coefs) * per
 
 
 # ---------------------------------------------------------------- the regression
@@ -628,7 +627,7 @@ def effect_source(terms, coefs: dict, scales, words) -> str:
         "",
         "from cosim import hookimpl",
         "from cosim_plugins.identify.effect import Effect, EffectParam",
-        "from cosim_plugins.models.physical import hydrodynamic_force",
+        *(["from cosim_plugins.models.physical import hydrodynamic_force"] if flows else []),
         "",
         f"TANK_HALF_MM = {WALL_MM}",
         "",
@@ -643,13 +642,12 @@ def effect_source(terms, coefs: dict, scales, words) -> str:
         "    spin = np.linalg.norm(u, axis=1)",
         "    wall = np.maximum(TANK_HALF_MM - np.max(np.abs(p), axis=1), 0.0)  # distance to the nearest wall [mm]",
         "    f = np.zeros_like(p, dtype=float)",
-        "    w = np.zeros_like(p, dtype=float)  # the water's velocity [mm/s]",
+        *(["    w = np.zeros_like(p, dtype=float)  # the water's velocity [mm/s]"] if flows else []),
     ]
     del_unused = {"speed": "speed", "spin": "spin", "wall": "wall", "one": "one"}
     used = " ".join(e for t in terms for _, e in t.parts)
     lines = [ln for ln in lines if not any(ln.strip().startswith(f"{k} =") and k not in used
-                                           for k in del_unused)
-             and not (("hydrodynamic_force" in ln or ln.startswith("    w =")) and not flows)]
+                                           for k in del_unused)]
     for t in terms:
         lines += [f'    {"w" if t.flow else "f"}[:, {a}] += params["{t.name}"] * '
                   f'{"(" + e + ")" if e.startswith("-") else e}  # along {AXES[a]}: {t.words}' for a, e in t.parts]
