@@ -341,17 +341,11 @@ def _library_from_data(name: str, entry) -> Effect:
 
 
 def term_library():
-    """({term name: Term}, library_effect) of the module of candidate terms, :mod:`discover` (in
-    ``cosim_plugins.diagnose`` since diagnose has a package of its own; ``cosim_plugins.identify`` before)."""
-    import importlib
+    """({term name: Term}, library_effect) of :mod:`cosim_plugins.diagnose.discover`, the module of candidate
+    terms (imported here, not at the top: discover imports this module)."""
+    from cosim_plugins.diagnose import discover
 
-    for name in ("cosim_plugins.diagnose.discover", "cosim_plugins.identify.discover"):
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError:
-            continue
-        return module.TERM_TABLE, module.library_effect
-    raise UserError("the table of candidate terms (cosim_plugins.diagnose.discover) is not installed")
+    return discover.TERM_TABLE, discover.library_effect
 
 
 def library_data(effects) -> dict:
