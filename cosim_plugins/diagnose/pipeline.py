@@ -76,7 +76,12 @@ from cosim_plugins.diagnose.result import (
     StepResult,
     Stepwise,
 )
-from cosim_plugins.diagnose.standin import holds_own_form, in_place_of_terms, own_law_misfit, stand_ins
+from cosim_plugins.diagnose.standin import (
+    drop_stand_ins,
+    holds_own_form,
+    in_place_of_terms,
+    own_law_misfit,
+)
 from cosim_plugins.diagnose.stepwise import (
     MAX_EFFECTS,
     Fit,
@@ -305,16 +310,18 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         result.discovered, source, found_fit = discover_on(final)
         by_name = {e.name: e for e in candidates}
         if found_fit is not None and selection.steps and _discovered_passes(result.discovered):
-            gone = stand_ins(fitter, selection, by_name,
-                             lambda fit, exclude: discover_on(fit, lambda m: None, exclude), floor[s.reference],
-                             s.reference, say)
-            if gone:  # the others measured again given what is left; the form discovered again on what they leave
-                failed = left_after_removal(fitter, selection, by_name, floor[s.reference], s.reference, say)
-                gone += [Dropped(**d) for d in failed]
+            def trial_or_final(fit, exclude=None):  # a stand-in's trial (terms excluded) runs quietly
+                return discover_on(fit) if exclude is None else discover_on(fit, lambda m: None, exclude)
+
+            gone, again = drop_stand_ins(
+                fitter, selection, by_name, trial_or_final,
+                lambda sel: left_after_removal(fitter, sel, by_name, floor[s.reference], s.reference, say),
+                floor[s.reference], s.reference, say)
+            if gone:
                 final = selection.final
                 _after_drops(result.stepwise, selection, gone, s.reference)
                 result.fit_notes = fit_notes(result)
-                result.discovered, source, found_fit = discover_on(final)
+                result.discovered, source, found_fit = again
         # a stand-in was judged against the form found without it, in its pass; the form found on what is left may
         # not hold what it did: it competes again on top of that form (the same gates), unless it was the uniform
         # part of the flow found (then the form holds it)

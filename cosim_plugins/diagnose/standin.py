@@ -77,10 +77,11 @@ def holds_own_form(name: str, terms) -> bool:
     return any({n for n in own if n[0] == k} <= set(terms) for k in kinds)
 
 
-def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None, key: str, say) -> list:
+def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None, key: str, say,
+              keep=()) -> list:
     """Drop from ``selection`` (in place: ``steps``, ``final``) every chosen force that stands in for a form
-    outside the library (see the module doc); returns a :class:`~.result.Dropped` (``given`` "discovered") for
-    each, in the order dropped.
+    outside the library (see the module doc), those named in ``keep`` excepted; returns a
+    :class:`~.result.Dropped` (``given`` "discovered") for each, in the order dropped.
 
     ``discover_on(fit, exclude) -> (Discovered, effect file source, Fit or None)`` runs discovery on what ``fit``
     leaves without the terms ``exclude`` (:func:`.pipeline._discover`), the Fit being ``fit``'s model refitted
@@ -91,10 +92,10 @@ def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None
         trials = []
         for i, step in enumerate(selection.steps):
             effect = by_name.get(step.effects[0])
-            if step.is_group or effect is None or effect.kind != "force":
+            if step.is_group or effect is None or effect.kind != "force" or effect.name in keep:
                 continue
-            keep = [by_name[s.effects[0]] for j, s in enumerate(selection.steps) if j != i]
-            without = fitter.without(selection.final, keep)
+            others = [by_name[s.effects[0]] for j, s in enumerate(selection.steps) if j != i]
+            without = fitter.without(selection.final, others)
             found, _, with_form = discover_on(without, OWN_TERMS.get(effect.name, ()))
             if with_form is None:
                 say(f"stand-in: {effect.name}: nothing discovered without it")
@@ -125,6 +126,45 @@ def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None
         say(f"stand-in: {step.effects[0]} dropped: a form outside the library ({', '.join(found.terms or ())}) "
             "explains what it did, and more")
         selection.final = without
+
+
+def drop_stand_ins(fitter, selection, by_name: dict, discover_on, after_removal, floor: float | None, key: str,
+                   say) -> tuple[list, tuple | None]:
+    """(gone, the discovery on what is left) once the stand-ins are out of ``selection`` (:func:`stand_ins`, in
+    place), the steps left measured again without them (``after_removal(selection) -> [drop dict]``,
+    :func:`.stepwise.left_after_removal`) and the form discovered again on what they leave (``discover_on(fit)``, no
+    term excluded; ``discover_on(fit, exclude)`` as in :func:`stand_ins`);
+    ``gone``: a :class:`~.result.Dropped` for each stand-in, then for each step that failed without them. ([],
+    None) when none goes.
+
+    A uniform flow dropped as the uniform part of a swirl or shear found without it must be in the form found
+    once it is out (:func:`holds_a_flow`). When it is not, that swirl was the flow's own push spread over terms
+    near constant on the paths (a wall drag's law misfit beside a flow of 0.6 mm/s: ``fx_z``, ``fy_z`` and
+    their uniform part): the drops are undone and the flow is kept."""
+    kept: set = set()
+    while True:
+        saved = (list(selection.steps), selection.final, len(selection.dropped))
+        gone = stand_ins(fitter, selection, by_name, discover_on, floor, key, say, keep=kept)
+        if not gone:
+            return [], None
+        failed = after_removal(selection)
+        again = discover_on(selection.final)
+        lost = set() if holds_a_flow(again[0], again[2]) else {d.effect for d in gone if d.part_of}
+        if not lost:
+            return gone + [Dropped(**d) for d in failed], again
+        say(f"stand-in: {', '.join(sorted(lost))} kept: the form found once it is out holds no flow with it as "
+            "its uniform part")
+        selection.steps, selection.final = saved[0], saved[1]
+        del selection.dropped[saved[2]:]
+        kept |= lost
+
+
+def holds_a_flow(found, with_form) -> bool:
+    """Whether the discovered form (``found``: Discovered; ``with_form``: the model refitted with it, its last
+    effect) is a flow varying with position that holds its constants as its uniform part: what a background flow
+    dropped as that uniform part (:func:`stand_ins`) must find in the form discovered once it is out."""
+    return (with_form is not None and found.pattern in FLOW_PATTERNS
+            and _uniform_part(with_form, None, with_form.model.effects[-1]))
 
 
 def in_place_of_terms(fitter, final, found, with_form, candidates, floor: float | None, key: str, say) -> tuple:

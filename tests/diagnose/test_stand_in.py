@@ -150,6 +150,63 @@ def test_a_uniform_flow_is_part_of_a_swirl_found_without_it(pattern, w_x, droppe
         assert gone == [] and [s.effects[0] for s in selection.steps] == [bg, grad]
 
 
+@pytest.mark.parametrize("again", ["swirl", "push"])
+def test_a_flow_dropped_as_a_swirls_uniform_part_stays_only_if_the_form_found_once_it_is_out_holds_it(again):
+    """Table fitter: found without the uniform flow (its constants excluded), a swirl (D1) holds it as its uniform
+    part, and the flow is dropped. Discovered again once the flow is out (no term excluded), the form (D4) is the
+    swirl again: the drop stands. When D4 is a steady push (no flow varying with position), the swirl was the
+    flow's own push spread over other terms: the flow comes back, the search's steps and drops as they were."""
+    from types import SimpleNamespace as NS
+
+    from cosim_plugins.diagnose.standin import drop_stand_ins
+
+    bg, grad = "background_flow", "gradient_force"
+    errors = {(bg, grad): 0.8, (grad,): 1.0, ("D1", grad): 0.6, ("D1", bg, grad): 0.48, (bg,): 1.1,
+              ("D2", bg): 0.9, ("D2", bg, grad): 0.7, ("D3",): 0.7, ("D3", grad): 0.5, ("D4", grad): 0.55}
+    errors = {frozenset(k): v for k, v in errors.items()}
+    effects = {n: NS(name=n, kind="force") for n in (bg, grad)}
+    effects |= {n: NS(name=n, kind="force", terms=("fx_y", "fy_x")) for n in ("D1", "D2", "D3", "D4")}
+    prm = {"Cd1": 0.2, f"{bg}.w_x": 1.0, f"{bg}.w_y": 0.0, "D1.fx_y": -0.01, "D1.fy_x": 0.01, "D4.fx_y": -0.01,
+           "D4.fy_x": 0.01}
+
+    def fit(names):
+        names = frozenset(names)
+        return NS(names=names, model=NS(effects=[effects[n] for n in sorted(names)], params=lambda: prm),
+                  error=lambda k: errors[names])
+
+    forms = {frozenset({grad}): "D1", frozenset({bg}): "D2", frozenset(): "D3"}
+    told = []
+
+    def discover_on(without, exclude=None):
+        form = "D4" if exclude is None else forms[without.names]
+        told.append(form)
+        with_form = fit(without.names | {form})
+        with_form.model.effects.append(effects[form])
+        pattern = {"D1": "swirl", "D4": again}.get(form, "gradient")
+        return NS(terms=[f"{form}_terms"], pattern=pattern), None, with_form
+
+    steps = [NS(effects=[n], is_group=False) for n in (bg, grad)]
+    selection = NS(steps=list(steps), final=fit({bg, grad}), dropped=[{"effect": "heading_lag"}])
+
+    def after_removal(sel):  # the step left fails without the flow: dropped as left_after_removal does
+        sel.dropped.append({"effect": grad, "reduction": 0.01, "t_stat": 0.2})
+        return sel.dropped[-1:]
+
+    said = []
+    gone, found = drop_stand_ins(_table_fitter(fit), selection, effects, discover_on, after_removal, None, KEY,
+                                 said.append)
+    if again == "swirl":
+        assert [(d.effect, d.given, d.part_of) for d in gone] == [(bg, "discovered", "swirl"), (grad, None, None)]
+        assert found[2].names == {grad, "D4"} and [s.effects[0] for s in selection.steps] == [grad]
+        assert told == ["D1", "D2", "D3", "D4"]  # D3: the force checked again once the flow is out
+    else:
+        assert gone == [] and found is None
+        assert selection.steps == steps and selection.final.names == {bg, grad}
+        assert selection.dropped == [{"effect": "heading_lag"}]
+        assert told == ["D1", "D2", "D3", "D4", "D2"]  # the flow kept, the force alone is checked again
+        assert any("background_flow kept" in m for m in said), said
+
+
 @pytest.mark.parametrize("beside_drag_mm, swapped", [(0.193, True), (0.5, False)])
 def test_a_listed_effect_takes_the_place_of_its_own_terms_in_the_form(beside_drag_mm, swapped):
     """A form found as a shear plus |u| u terms (a quadratic drag's own form) is refitted less those terms beside
