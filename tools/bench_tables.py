@@ -284,8 +284,9 @@ ROWS = (
         "beforehand; each pair's minimum over 5 passes)", "`pair_ms` median <= 2 ms", ("camera",), _camera),
     Row("diagnose.py", "`cosim diagnose` on five 3,000-row logs",
         "<= 20 s (round 3); <= 60 s with the stepwise search (issue 33)",
-        ("diagnose_jobs2_0940a22", "diagnose_jobs2_2bb3b17", "diagnose_jobs2_775c2b1", "diagnose_jobs2_222c636",
-         "diagnose_jobs2_fa604e4", "diagnose_jobs2_010912a", "diagnose_jobs2", "diagnose_jobs1"), _diagnose),
+        ("diagnose_jobs2_79af89a", "diagnose_jobs2_0940a22", "diagnose_jobs2_2bb3b17", "diagnose_jobs2_775c2b1",
+         "diagnose_jobs2_222c636", "diagnose_jobs2_fa604e4", "diagnose_jobs2_010912a", "diagnose_jobs2",
+         "diagnose_jobs1"), _diagnose),
     Row("archive.py", "`cosim diagnose` on 5, 20 and 120 logs of 60 s from the blind bench's simulator "
         "(a background flow hidden): wall time, peak memory, the named effects",
         "2 hours <= 3 min and <= 3 GB, the verdict of 20 logs", ("archive",), _archive),
@@ -443,7 +444,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
     ("blind_groups_s103", "seed 103 (fresh, multi only, 73eb11f: the same diagnosis)"),
     ("blind_groups_s105", "seed 105 (fresh, multi only, 06b83d9: a flow's form refitted as the water's velocity, "
                           "the thrust's factor one term per axis, further terms earning their place)"),
-    ("blind_groups_s106", "seed 106 (fresh, multi only, 06b83d9: the same diagnosis)"))
+    ("blind_groups_s106", "seed 106 (fresh, multi only, 06b83d9: the same diagnosis)"),
+    ("blind_groups_s108", "seed 108 (fresh, 55af7eb: a flow dropped as a swirl's uniform part comes back when the "
+     "form found without it holds no flow)"))
 
 
 def several_effects_table() -> str:
