@@ -446,7 +446,7 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                           "the thrust's factor one term per axis, further terms earning their place)"),
     ("blind_groups_s106", "seed 106 (fresh, multi only, 06b83d9: the same diagnosis)"),
     ("blind_groups_s108", "seed 108 (fresh, 55af7eb: a flow dropped as a swirl's uniform part comes back when the "
-     "form found without it holds no flow)"),
+                          "form found without it holds no flow)"),
     ("blind_groups_s109", "seed 109 (fresh, multi only, 023d7ce: the same diagnosis)"))
 
 
