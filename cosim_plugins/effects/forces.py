@@ -43,6 +43,14 @@ def _unit(a: np.ndarray) -> np.ndarray:
     return a / _safe(_norm(a))
 
 
+def through_water(v: np.ndarray, prm) -> np.ndarray:
+    """(n, 3) velocity [mm/s] relative to the water: v (n, 3) less the water's horizontal velocity that a flow in
+    the model sets (``prm["water_x"]``, ``prm["water_y"]``; still water without a flow). Every drag acts on it."""
+    if "water_x" not in prm:
+        return v
+    return v - np.array([prm["water_x"], prm["water_y"], 0.0])
+
+
 def wall_distance_mm(p: np.ndarray) -> np.ndarray:
     """(n,) distance from p (n, 3) [mm] to the nearest tank wall [mm], >= 0."""
     return np.maximum(TANK_HALF_MM - np.max(np.abs(p), axis=1), 0.0)
@@ -60,11 +68,13 @@ BACKGROUND_FLOW = Effect(
     name="background_flow",
     params=(EffectParam("w_x", 0.0, -50.0, 50.0, "mm/s", 1.0), EffectParam("w_y", 0.0, -50.0, 50.0, "mm/s", 1.0)),
     force=_background_flow,
+    water=("w_x", "w_y"),
     doc="A uniform drift of the water (residual circulation, a slow pump): drag and lift act on the velocity "
         "relative to the water, so the extra force is H(v - w) - H(v), H the model's own drag and lift (Eq. 2-5: "
         "-(Cd0 sin(alpha) + Cd1) v + Cl0 sin(2 alpha) |v| v_perp, alpha taken against the relative velocity). "
         "w = (w_x, w_y, 0) [mm/s]; a vertical drift is not fitted because it is indistinguishable from the "
-        "net weight F_vs already in the model.",
+        "net weight F_vs already in the model. The extra drags of a model that holds it (wall, anisotropic, "
+        "quadratic) act on the velocity relative to the water too.",
 )
 
 
@@ -74,7 +84,7 @@ BACKGROUND_FLOW = Effect(
 def _wall_drag(p, v, u, prm):
     ell = prm["ell"]
     gain = ell / (wall_distance_mm(p) + ell)
-    return -(prm["c"] * gain)[:, None] * v
+    return -(prm["c"] * gain)[:, None] * through_water(v, prm)
 
 
 WALL_DRAG = Effect(
@@ -84,7 +94,8 @@ WALL_DRAG = Effect(
     doc="Extra drag near a wall (lubrication and image-flow effects; Faxen and Brenner give a drag rise "
         "~ a/h at a distance h from a plane wall): -c ell / (d + ell) v with d the distance from the "
         "centre to the nearest wall of the 150 mm tank [mm], so the drag grows as 1/d away from the wall "
-        "and saturates at c [uN s/mm] at contact; ell [mm] is the fitted length scale.",
+        "and saturates at c [uN s/mm] at contact; ell [mm] is the fitted length scale. v is the velocity "
+        "through the water (relative to a background_flow's).",
     starts=({"c": 0.05, "ell": 2.0}, {"c": 0.05, "ell": 8.0}, {"c": 0.05, "ell": 25.0}),
 )
 
@@ -163,7 +174,8 @@ GRADIENT_FORCE = Effect(
 
 def _anisotropic_drag(p, v, u, prm):
     a = _unit(u)
-    v_perp = v - _dot(v, a)[:, None] * a
+    vr = through_water(v, prm)
+    v_perp = vr - _dot(vr, a)[:, None] * a
     return -prm["c"] * v_perp
 
 
@@ -175,7 +187,8 @@ ANISOTROPIC_DRAG = Effect(
         "(slender-body ratio up to 2). With the long axis along the command u, the extra force is "
         "-c (v - (v . u_hat) u_hat), c [uN s/mm]. For small angles of attack the paper's lift "
         "Cl0 sin(2 alpha) |v| v_perp is the same force with c = 2 Cl0, so the model absorbs most of it: only "
-        "broadside motion (sinking across the axis, sharp turns) tells the two apart.",
+        "broadside motion (sinking across the axis, sharp turns) tells the two apart. v is the velocity through "
+        "the water (relative to a background_flow's).",
 )
 
 
@@ -183,7 +196,8 @@ ANISOTROPIC_DRAG = Effect(
 
 
 def _quadratic_drag(p, v, u, prm):
-    return -prm["c"] * _norm(v) * v
+    vr = through_water(v, prm)
+    return -prm["c"] * _norm(vr) * vr
 
 
 QUADRATIC_DRAG = Effect(
@@ -191,7 +205,8 @@ QUADRATIC_DRAG = Effect(
     params=(EffectParam("c", 0.0, 0.0, math.inf, "uN s^2/mm^2", 2e-3),),
     force=_quadratic_drag,
     doc="Form drag at Reynolds numbers of 25-300: -c |v| v with c = rho Cd A / 2 [uN s^2/mm^2] "
-        "(water, Cd ~ 1, A ~ 5-15 mm^2 gives 2.5e-3-7.5e-3), on top of the model's linear drag.",
+        "(water, Cd ~ 1, A ~ 5-15 mm^2 gives 2.5e-3-7.5e-3), on top of the model's linear drag; v is the "
+        "velocity through the water (relative to a background_flow's).",
     # from c = 0, at its bound, a fit whose linear drag already took the slowing stays there: starts spread over
     # the form-drag range (x4 apart), each held while the model's drag adapts to it
     starts=({"c": 1e-3}, {"c": 4e-3}, {"c": 1.6e-2}),

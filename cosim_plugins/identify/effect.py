@@ -12,7 +12,12 @@ An effect is one of three kinds:
     parameter names (short: ``"c"``, not ``"quadratic_drag.c"``) to floats
     and also holds the host model's parameters by their names (for the
     physical model: ``k, Cd0, Cd1, Cl0, Fvs, Fmax``), so an effect may reuse
-    e.g. the drag coefficient (background flow: drag acts on v - w).
+    e.g. the drag coefficient (background flow: drag acts on v - w). A
+    flow names its water-velocity parameters in ``water``; in a model that
+    holds it, every force effect's ``params`` also hold ``water_x`` and
+    ``water_y`` [mm/s], the water's horizontal velocity, so an extra drag
+    acts on the velocity relative to the water as the host's drag does
+    (:func:`water_params`).
 ``input``
     ``transform(u, dt_s, params) -> (n, 3)``: the command the plant actually
     follows, from the logged command timeline u (n, 3) [Hz] of one
@@ -101,6 +106,8 @@ class Effect:
             trajectory before row 0 that the transform reads (see the module doc).
         terms: for a discovered effect, the names of its candidate terms (:mod:`.discover`):
             a model file stores these and the coefficients, not code.
+        water: for a flow, the names of its two parameters that are the water's horizontal velocity
+            (x, y) [mm/s] (see the module doc).
     """
 
     name: str
@@ -113,6 +120,7 @@ class Effect:
     data_starts: Callable | None = None
     lookback: Callable | None = None
     terms: tuple[str, ...] = field(default=())
+    water: tuple[str, ...] = field(default=())
 
     def param_names(self) -> list[str]:
         """Fully qualified names ``effect.param`` used in models, reports and files."""
@@ -129,6 +137,19 @@ class Effect:
         """The doc's opening phrase, up to its first colon (for listings, <= 90 characters)."""
         head = (self.doc or "").strip().split(":")[0].split(". ")[0].rstrip(".")
         return head if len(head) <= 90 else head[:87] + "..."
+
+
+#: the names under which a force effect's parameters hold the water's horizontal velocity [mm/s]
+WATER_NAMES = ("water_x", "water_y")
+
+
+def water_params(effects, params: dict) -> dict:
+    """{"water_x", "water_y"}: the water's horizontal velocity [mm/s] that the flows among ``effects`` (those
+    naming ``water``) set, summed, read from the fully qualified ``params``; {} when no effect is a flow."""
+    flows = [e for e in effects if getattr(e, "water", ())]
+    if not flows:
+        return {}
+    return {key: sum(float(params[f"{e.name}.{e.water[i]}"]) for e in flows) for i, key in enumerate(WATER_NAMES)}
 
 
 def check_effect(obj, source: str = "") -> Effect:
@@ -155,6 +176,10 @@ def check_effect(obj, source: str = "") -> Effect:
     for p in params:
         if not (math.isfinite(p.init) and p.lo <= p.init <= p.hi):
             raise UserError(f"{label}: parameter {p.name!r} initial value {p.init} is not within [{p.lo}, {p.hi}]")
+    water = tuple(getattr(obj, "water", ()) or ())
+    if water and (kind != "force" or len(water) != 2 or not set(water) <= set(names)):
+        raise UserError(f"{label}: water {water!r} must name two of a force effect's parameters (the water's x and "
+                        f"y velocity), of {names}")
     fn = getattr(obj, "force" if kind == "force" else "transform", None)
     if not callable(fn):
         what = "force(p, v, u, params)" if kind == "force" else "transform(...)"

@@ -59,7 +59,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from cosim.contract.errors import UserError
-from cosim_plugins.identify.effect import effect_sources, library_data, restore_effects
+from cosim_plugins.identify.effect import effect_sources, library_data, restore_effects, water_params
 from cosim_plugins.identify.model import Model
 from cosim_plugins.identify.terms import EffectParam, ForceTerm
 
@@ -129,15 +129,17 @@ def forces(p, v, u, params: dict, terms=(), pb_norm_mm: float = 70 * math.sqrt(3
     """Total force [uN], (n, 3), at p [mm], v [mm/s], u [Hz] for named ``params``."""
     f = params["k"] * u + hydrodynamic_force(v, u, params) + params["Fmax"] * _centring_t(p.T, pb_norm_mm).T
     f[:, 2] += params["Fvs"]
+    water = water_params(terms, params)
     for term in terms:
-        f = f + term.force(p, v, u, _term_params(term, params))
+        f = f + term.force(p, v, u, _term_params(term, params, water))
     return f
 
 
-def _term_params(term, params: dict) -> dict:
-    """The term's own parameters by short name, plus the base parameters (k, Cd0, ...) it may reuse."""
+def _term_params(term, params: dict, water: dict) -> dict:
+    """The term's own parameters by short name, plus the base parameters (k, Cd0, ...) it may reuse and the
+    water's velocity ``water`` (:func:`~cosim_plugins.identify.effect.water_params`, {} without a flow)."""
     own = {q.name: params[f"{term.name}.{q.name}"] for q in term.params}
-    return {**{n: params[n] for n in BASE_NAMES}, **own}
+    return {**{n: params[n] for n in BASE_NAMES}, **water, **own}
 
 
 def phi1(z):
@@ -204,8 +206,9 @@ class PhysicalModel(Model):
             v = rng.uniform(-30.0, 30.0, (8, 3))
             named = {q.name: float(np.clip(q.init + q.typical(), q.lo, q.hi)) for q in self.all_params()}
             flags = []
+            water = water_params(self.terms, named)
             for term in self.terms:
-                prm = _term_params(term, named)
+                prm = _term_params(term, named, water)
                 with np.errstate(all="ignore"):
                     moved = term.force(p, v, u, prm) - term.force(p, np.zeros_like(v), u, prm)
                 flags.append(not np.allclose(moved, 0.0, atol=0.0))
@@ -335,7 +338,8 @@ class PhysicalModel(Model):
             return [g.force for g in groups.terms]
         # under set_columns the terms read the shared values of the base parameters
         named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
-        return [_one_call(_term_params(term, named)) for term in self.terms]
+        water = water_params(self.terms, named)
+        return [_one_call(_term_params(term, named, water)) for term in self.terms]
 
     def _pass_t(self, x, u, f, drive, cent, v_geo, h, th, calls):
         """:meth:`_step_t`'s one pass: the drive and the centring force (3, n) held, the angle terms and the extra
@@ -406,8 +410,9 @@ class PhysicalModel(Model):
         y = (vn - v) / (dt * self._scale)  # uN
         if self.terms:
             named = dict(zip((q.name for q in self.all_params()), self._theta))
+            water = water_params(self.terms, named)
             for term in self.terms:
-                y = y - term.force(p, v, u, _term_params(term, named))
+                y = y - term.force(p, v, u, _term_params(term, named, water))
         A = self._regressors(p, v, 0.5 * (v + vn), u).reshape(-1, 6)
         norms = np.linalg.norm(A, axis=0)
         norms[norms == 0] = 1.0
@@ -692,7 +697,8 @@ class _Groups:
         self.thetas, self.width, self.columns = thetas, width, len(thetas) * width
         self.th = [self._per_column(thetas[:, i]) for i in range(len(BASE_NAMES))]
         named = [dict(zip(names, row)) for row in thetas]
-        self.terms = [_TermGroups([_term_params(term, nm) for nm in named], width) for term in terms]
+        water = [water_params(terms, nm) for nm in named]
+        self.terms = [_TermGroups([_term_params(term, nm, w) for nm, w in zip(named, water)], width) for term in terms]
         self._hold: dict = {}
 
     def _per_column(self, values: np.ndarray):

@@ -14,6 +14,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from cosim.contract.errors import UserError
+from cosim_plugins.identify.effect import water_params
 from cosim_plugins.twin.units import HOST_UNITS, HZ_PER_RAD_S, MM_PER_M, N_PER_UN, N_PER_UN_PER_MM
 
 #: Central-difference steps: position [mm] and velocity [mm/s].
@@ -55,7 +56,8 @@ class AppliedEffects:
                                 f"{p.unit}")
         self.host = {k: float(host[k]) for k in HOST_UNITS}
         self.values = {q: float(values.get(q, p.init)) for q, (_, p) in params.items()}
-        self._own = [{**self.host, **{p.name: self.values[f"{e.name}.{p.name}"] for p in e.params}}
+        water = water_params(self.effects, self.values)  # a flow's water: the other drags act relative to it
+        self._own = [{**self.host, **water, **{p.name: self.values[f"{e.name}.{p.name}"] for p in e.params}}
                      for e in self.effects]
         h = np.concatenate([np.zeros((1, 3)), np.eye(3), -np.eye(3)])
         z = np.zeros((7, 3))

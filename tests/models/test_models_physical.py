@@ -61,6 +61,39 @@ def test_a_uniform_flow_gives_the_forces_at_the_velocity_relative_to_the_water()
     np.testing.assert_allclose(extra, np.broadcast_to(linear["Cd1"] * w, extra.shape), rtol=1e-12)
 
 
+def test_beside_a_flow_every_drag_acts_on_the_velocity_relative_to_the_water():
+    """A swimmer drifting with the water feels no drag: with a uniform flow w in the model, the wall, anisotropic
+    and quadratic drags act on v - w as the host's drag does: in the force law, in the model's step and in a batch
+    of parameter groups (a fit's Jacobian columns), where each group's drags follow its own flow."""
+    from cosim_plugins.identify.effect import resolve
+
+    effects = resolve(["background_flow", "wall_drag", "anisotropic_drag", "quadratic_drag"])
+    x, u = _random_states(40, seed=4)
+    p, v = x[:, :3], x[:, 3:]
+    w = np.array([3.0, -2.0, 0.0])
+    still = {**syn.TRUE_PARAMS, "wall_drag.c": 1.5, "wall_drag.ell": 8.0, "anisotropic_drag.c": 0.4,
+             "quadratic_drag.c": 0.01}
+    moving = {**still, "background_flow.w_x": w[0], "background_flow.w_y": w[1]}
+    np.testing.assert_allclose(forces(p, v, u, moving, terms=effects), forces(p, v - w, u, still, terms=effects[1:]),
+                               rtol=1e-10, atol=1e-12)
+    model = PhysicalModel.from_params(moving, terms=effects)
+    dt = 1e-7
+    acc = (model.predict(x, u, dt)[:, 3:] - v) / dt
+    np.testing.assert_allclose(acc, 1000.0 * forces(p, v, u, moving, terms=effects) / 12.4, rtol=1e-4, atol=1e-3)
+    names = list(model.params())
+    theta = np.array([model.params()[n] for n in names])
+    calm = theta.copy()
+    calm[names.index("background_flow.w_x")] = calm[names.index("background_flow.w_y")] = 0.0
+    model.set_groups(np.stack([theta, calm]), len(x))
+    try:
+        both = model.predict_t(np.concatenate([x, x]).T.copy(), np.concatenate([u, u]).T.copy(), dt)
+    finally:
+        model.set_groups(None)
+    acc_groups = (both[3:].T - np.concatenate([v, v])) / dt
+    expected = np.concatenate([forces(p, v, u, moving, terms=effects), forces(p, v, u, still, terms=effects[1:])])
+    np.testing.assert_allclose(acc_groups, 1000.0 * expected / 12.4, rtol=1e-4, atol=1e-3)
+
+
 def test_stiff_drag_is_stable():
     model = PhysicalModel.from_params({"k": 100.0, "Cd1": 100.0, "Cd0": 0.0})  # lambda dt ~ 1.6e5
     x = np.array([[0.0, 0.0, 0.0, 500.0, 0.0, 0.0]])
