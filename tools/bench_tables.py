@@ -447,7 +447,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
     ("blind_groups_s106", "seed 106 (fresh, multi only, 06b83d9: the same diagnosis)"),
     ("blind_groups_s108", "seed 108 (fresh, 55af7eb: a flow dropped as a swirl's uniform part comes back when the "
                           "form found without it holds no flow)"),
-    ("blind_groups_s109", "seed 109 (fresh, multi only, 023d7ce: the same diagnosis)"))
+    ("blind_groups_s109", "seed 109 (fresh, multi only, 023d7ce: the same diagnosis)"),
+    ("blind_groups_s110", "seed 110 (fresh, multi only, 07f9cb6: every drag through the water beside a flow)"))
 
 
 def several_effects_table() -> str:
