@@ -59,6 +59,7 @@ from cosim_plugins.diagnose.wording import given_words
 MAX_EFFECTS = 3  # default of --max-effects
 SCREEN_KEEP = 3  # rounds after the first: candidates given a full fit after the quick screen
 SCREEN_MIN = 0.03  # ... and only those whose quick fit lowers the error by at least this share
+SCREEN_FAILED = 0.10  # ... and those whose quick fit raises it by this share or more (a fit that failed)
 LOOKAHEADS = 2  # candidates of one round taken tentatively in turn when none passes alone (see _tentative)
 #: Why a search stopped, in words.
 STOPS = {"noise_floor": "the error is at the noise floor", "none_passes": "no remaining candidate passes",
@@ -392,7 +393,9 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
     goes to the :data:`SCREEN_KEEP` best whose quick drop reaches :data:`SCREEN_MIN` (the :data:`SCREEN_KEEP`
     best when none does: an actuation lag given a quadratic drag gained 0.0 % by its quick fit, 81 % by its
     true form), and so does every effect whose quick fit changed nothing (not identifiable); the others keep
-    their quick entry (marked ``"screened": True``). A quick fit stops sooner and
+    their quick entry (marked ``"screened": True``), except those whose quick fit raised the error by
+    :data:`SCREEN_FAILED` or more: the effect at its null value reproduces the reference, so such a fit failed
+    rather than measured the effect. A quick fit stops sooner and
     skips the open-loop polish that ``before`` had, so its drop is measured against ``before`` refitted the same
     quick way, with no effect added (``fitter.with_effects(before, [], quick=True)``): against the polished
     ``before`` every quick fit would look worse, the polish's gain counted as the candidate's loss.
@@ -412,6 +415,10 @@ def rank(fitter, before: Fit, effects, key: str, say=None, screen: bool = False)
         # a quick fit that changes nothing says little: a step-out's six evaluations left f_so above the band,
         # where it acts on nothing, while its full fit lowered the error by 77 % given the same model
         hopeful += [e for e in entries.values() if not e["identifiable"]]
+        # nor does one that ends far above the reference it started from (the effect at its null value is that
+        # reference): a step-out's quick fit beside a uniform flow standing in for a shear lost 25 %, its full fit
+        # gained 23 % given the same model (t = 6.4)
+        hopeful += [e for e in entries.values() if e["identifiable"] and e["reduction"] <= -SCREEN_FAILED]
         todo = [e for e in effects if e.name in {h["effect"] for h in hopeful}]
         if say:
             say(f"  screened {len(effects)} candidates by a quick fit; refitting "

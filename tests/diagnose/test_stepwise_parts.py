@@ -204,6 +204,29 @@ def test_a_candidate_whose_quick_fit_changes_nothing_still_gets_the_full_fit():
     assert SCREEN_KEEP == 3
 
 
+def test_a_candidate_whose_quick_fit_ends_far_above_its_reference_still_gets_the_full_fit():
+    """A step-out's quick fit beside a uniform flow standing in for a shear ended 25 % above the quick reference
+    while its full fit gained 23 %: a quick fit that loses SCREEN_FAILED or more failed (the effect at its null
+    value is the reference), so it is refitted in full beside the three best; one that loses less is not."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import SCREEN_FAILED, rank
+
+    class Failed(_Quick):
+        def with_effects(self, before, effects, quick=False):
+            fit, ok = super().with_effects(before, effects, quick)
+            if quick and any(e.name in ("step_out", "gradient") for e in effects):
+                loss = {"step_out": 0.25, "gradient": 0.5 * SCREEN_FAILED}[effects[0].name]
+                return self._fit((before.error("1.0") + self.POLISH) * (1.0 + loss)), ok
+            return fit, ok
+
+    gain = {"step_out": 0.23, "flow": 0.1, "drag": 0.08, "wall": 0.06, "lag": 0.05, "gradient": 0.04}
+    entries, _ = rank(Failed(gain), Failed(gain)._fit(1.0), [SimpleNamespace(name=n) for n in gain], "1.0",
+                      screen=True)
+    assert entries[0]["effect"] == "step_out" and entries[0]["reduction"] == pytest.approx(0.23)
+    assert {e["effect"] for e in entries if not e.get("screened")} == {"step_out", "flow", "drag", "wall"}
+
+
 def test_the_look_alikes_of_a_candidate_about_to_be_named_get_their_full_fit():
     """A latency fully fitted leads a round in which the lag had only its quick fit: the lag gets the full fit
     before the group test, and leads once it does better; a flow's quick entry stays as it was."""
