@@ -129,17 +129,16 @@ def forces(p, v, u, params: dict, terms=(), pb_norm_mm: float = 70 * math.sqrt(3
     """Total force [uN], (n, 3), at p [mm], v [mm/s], u [Hz] for named ``params``."""
     f = params["k"] * u + hydrodynamic_force(v, u, params) + params["Fmax"] * _centring_t(p.T, pb_norm_mm).T
     f[:, 2] += params["Fvs"]
-    water = water_params(terms, params)
-    for term in terms:
-        f = f + term.force(p, v, u, _term_params(term, params, water))
+    for term, prm in zip(terms, _terms_params(terms, params)):
+        f = f + term.force(p, v, u, prm)
     return f
 
 
-def _term_params(term, params: dict, water: dict) -> dict:
-    """The term's own parameters by short name, plus the base parameters (k, Cd0, ...) it may reuse and the
-    water's velocity ``water`` (:func:`~cosim_plugins.identify.effect.water_params`, {} without a flow)."""
-    own = {q.name: params[f"{term.name}.{q.name}"] for q in term.params}
-    return {**{n: params[n] for n in BASE_NAMES}, **water, **own}
+def _terms_params(terms, params: dict) -> list:
+    """Per term, its own parameters by short name, plus the base parameters (k, Cd0, ...) it may reuse and the
+    water's velocity that a flow among ``terms`` sets (:func:`~cosim_plugins.identify.effect.water_params`)."""
+    shared = {**{n: params[n] for n in BASE_NAMES}, **water_params(terms, params)}
+    return [{**shared, **{q.name: params[f"{term.name}.{q.name}"] for q in term.params}} for term in terms]
 
 
 def phi1(z):
@@ -206,9 +205,7 @@ class PhysicalModel(Model):
             v = rng.uniform(-30.0, 30.0, (8, 3))
             named = {q.name: float(np.clip(q.init + q.typical(), q.lo, q.hi)) for q in self.all_params()}
             flags = []
-            water = water_params(self.terms, named)
-            for term in self.terms:
-                prm = _term_params(term, named, water)
+            for term, prm in zip(self.terms, _terms_params(self.terms, named)):
                 with np.errstate(all="ignore"):
                     moved = term.force(p, v, u, prm) - term.force(p, np.zeros_like(v), u, prm)
                 flags.append(not np.allclose(moved, 0.0, atol=0.0))
@@ -338,8 +335,7 @@ class PhysicalModel(Model):
             return [g.force for g in groups.terms]
         # under set_columns the terms read the shared values of the base parameters
         named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
-        water = water_params(self.terms, named)
-        return [_one_call(_term_params(term, named, water)) for term in self.terms]
+        return [_one_call(prm) for prm in _terms_params(self.terms, named)]
 
     def _pass_t(self, x, u, f, drive, cent, v_geo, h, th, calls):
         """:meth:`_step_t`'s one pass: the drive and the centring force (3, n) held, the angle terms and the extra
@@ -410,9 +406,8 @@ class PhysicalModel(Model):
         y = (vn - v) / (dt * self._scale)  # uN
         if self.terms:
             named = dict(zip((q.name for q in self.all_params()), self._theta))
-            water = water_params(self.terms, named)
-            for term in self.terms:
-                y = y - term.force(p, v, u, _term_params(term, named, water))
+            for term, prm in zip(self.terms, _terms_params(self.terms, named)):
+                y = y - term.force(p, v, u, prm)
         A = self._regressors(p, v, 0.5 * (v + vn), u).reshape(-1, 6)
         norms = np.linalg.norm(A, axis=0)
         norms[norms == 0] = 1.0
@@ -697,8 +692,8 @@ class _Groups:
         self.thetas, self.width, self.columns = thetas, width, len(thetas) * width
         self.th = [self._per_column(thetas[:, i]) for i in range(len(BASE_NAMES))]
         named = [dict(zip(names, row)) for row in thetas]
-        water = [water_params(terms, nm) for nm in named]
-        self.terms = [_TermGroups([_term_params(term, nm, w) for nm, w in zip(named, water)], width) for term in terms]
+        per_group = [_terms_params(terms, nm) for nm in named]
+        self.terms = [_TermGroups([prms[i] for prms in per_group], width) for i in range(len(terms))]
         self._hold: dict = {}
 
     def _per_column(self, values: np.ndarray):
