@@ -181,14 +181,15 @@ def _anisotropic_drag(p, v, u, prm):
 
 ANISOTROPIC_DRAG = Effect(
     name="anisotropic_drag",
-    params=(EffectParam("c", 0.0, -0.05, 2.0, "uN s/mm", 0.02),),
+    params=(EffectParam("c", 0.0, 0.0, 2.0, "uN s/mm", 0.02),),
     force=_anisotropic_drag,
     doc="Anisotropic drag of an elongated body: moving broadside costs more than moving along its axis "
         "(slender-body ratio up to 2). With the long axis along the command u, the extra force is "
         "-c (v - (v . u_hat) u_hat), c [uN s/mm]. For small angles of attack the paper's lift "
         "Cl0 sin(2 alpha) |v| v_perp is the same force with c = 2 Cl0, so the model absorbs most of it: only "
-        "broadside motion (sinking across the axis, sharp turns) tells the two apart. v is the velocity through "
-        "the water (relative to a background_flow's).",
+        "broadside motion (sinking across the axis, sharp turns) tells the two apart. c >= 0: a body cheaper to "
+        "move broadside than along its axis is not this effect (a lift of either sign is the model's Cl0). v is "
+        "the velocity through the water (relative to a background_flow's).",
 )
 
 
