@@ -124,9 +124,10 @@ def test_a_flow_holds_its_uniform_part_when_it_vanishes_inside_the_tank(coefs, p
 def test_a_form_the_linearisation_understates_is_kept_when_its_refit_passes(tmp_path, fresh_plugins):
     """The blind bench's seed 73, multi_003 (redrawn): water turning about an off-centre axis beside a quadratic
     drag worth 0.9x the linear drag at cruise. About the baseline, which the two missing effects pull far off, the
-    linearised regression's drop is not significant (t = 0.3); refitted, the form lowers the held-out error by
-    73 % (t = 6.4). It is kept, read as a swirl."""
-    import re
+    linearised regression's drop was not significant (t = 0.3) while the open-loop polish minimised one-pass
+    errors; refitted, the form lowered the held-out error by 73 % (t = 6.4) and is kept when its refit passes.
+    With the polish on the evaluation's two-pass errors the linearised drop is t = 4.2 itself; the swirl must
+    be found either way."""
     import sys
     from pathlib import Path
 
@@ -138,21 +139,20 @@ def test_a_form_the_linearisation_understates_is_kept_when_its_refit_passes(tmp_
 
     case = blind_sim.draw_multi_case(1562531378, ["quadratic_drag", "rotating_flow"], index=3)
     assert case.truth["rotating_flow"]["omega_rad_s"] == pytest.approx(0.1088, abs=1e-4)
-    said = []
-    found = run(blind_sim.simulate(case, tmp_path), settings=Settings(candidates=[], discover=True, drift=False),
-                progress=said.append).json["discovered"]
-    linear = next(m for m in said if "terms chosen on held-out windows" in m)
-    assert float(re.search(r"t = (-?[\d.]+)\)", linear).group(1)) < MIN_T, linear
+    found = run(blind_sim.simulate(case, tmp_path), settings=Settings(candidates=[], discover=True, drift=False)
+                ).json["discovered"]
     assert found["status"] == "found" and found["pattern"] == "swirl", found
     assert found["reduction"] >= 0.5 and found["t_stat"] >= MIN_T
 
 
 def test_a_form_hidden_by_a_sluggish_baseline_is_found_about_another_time_constant(tmp_path, fresh_plugins):
     """The blind bench's seed 76, case 8 (redrawn): water turning at 0.059 rad/s about (-26, +11) mm, a swimmer
-    with a 31 ms velocity time constant. Without the flow the model's fit takes a 1.56 s time constant, which
-    carries each lead-in's drift through its window; about that model the linearised regression finds nothing.
-    About the model with its time constant moved (the speed per Hz kept), then about where that refit leaves
-    the model, the swirl is found and read where it is."""
+    with a 31 ms velocity time constant. Without the flow the model's fit took a 1.56 s time constant, which
+    carries each lead-in's drift through its window, while the open-loop polish minimised one-pass errors; about
+    that model the linearised regression found nothing, and the swirl was found about the model with its time
+    constant moved (the speed per Hz kept; :func:`_other_time_constants`, tested on its own in
+    ``test_diagnose_parts.py``). With the polish on the evaluation's two-pass errors the first regression finds
+    it. Either way it must be found and read where it is."""
     import re
     import sys
     from pathlib import Path
@@ -164,12 +164,8 @@ def test_a_form_hidden_by_a_sluggish_baseline_is_found_about_another_time_consta
 
     case = blind_sim.draw_case(366384645, "outside", "rotating_flow", index=8)
     assert case.truth["omega_rad_s"] == pytest.approx(0.0591, abs=1e-4)
-    said = []
-    found = run(blind_sim.simulate(case, tmp_path), settings=Settings(candidates=[], discover=True, drift=False),
-                progress=said.append).json["discovered"]
-    first = next(m for m in said if "terms chosen on held-out windows" in m)
-    assert first.startswith("discover: 0 terms chosen"), first
-    assert any("again about the model with a velocity time constant" in m for m in said)
+    found = run(blind_sim.simulate(case, tmp_path), settings=Settings(candidates=[], discover=True, drift=False)
+                ).json["discovered"]
     assert found["status"] == "found" and found["pattern"] == "swirl", found
     assert found["reduction"] >= 0.7 and found["t_stat"] >= 3.0
     axis = re.search(r"axis through about \(([-+\d.]+), ([-+\d.]+)\) mm", " ".join(found["words"]))
