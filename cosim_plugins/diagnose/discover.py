@@ -57,7 +57,7 @@ import numpy as np
 from cosim_plugins.diagnose.rebuild import rebuilt
 from cosim_plugins.diagnose.verdict import BLOCK_S, MIN_T, paired_t
 from cosim_plugins.identify.effect import Effect, EffectParam
-from cosim_plugins.models.physical import hydrodynamic_force
+from cosim_plugins.models.physical import flow_force
 
 AXES = "xyz"
 WALL_MM = 75.0  # the tank's half size: walls at +-75 mm
@@ -215,7 +215,7 @@ def term_force(terms, coefs, p, v, u, host: dict | None = None) -> np.ndarray:
     if w is not None:
         if host is None:
             raise ValueError("a flow term's force needs the host model's drag parameters")
-        f += hydrodynamic_force(v - w, u, host) - hydrodynamic_force(v, u, host)
+        f += flow_force(v, w, u, host)
     return f
 
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from cosim_plugins.identify.effect import Effect, EffectParam
-from cosim_plugins.models.physical import hydrodynamic_force
+from cosim_plugins.models.physical import flow_force
 
 #: Half the tank's edge [mm]: walls at +-75 mm on every axis.
 TANK_HALF_MM = 75.0
@@ -60,8 +60,7 @@ def wall_distance_mm(p: np.ndarray) -> np.ndarray:
 
 
 def _background_flow(p, v, u, prm):
-    w = np.array([prm["w_x"], prm["w_y"], 0.0])
-    return hydrodynamic_force(v - w, u, prm) - hydrodynamic_force(v, u, prm)
+    return flow_force(v, np.array([prm["w_x"], prm["w_y"], 0.0]), u, prm)
 
 
 BACKGROUND_FLOW = Effect(

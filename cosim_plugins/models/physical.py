@@ -119,6 +119,18 @@ def hydrodynamic_force(v: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray
     return params.get("Cl0", 0.0) * lift.T - cd[:, None] * v
 
 
+def flow_force(v: np.ndarray, w: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
+    """(n, 3) [uN] H(v - w) - H(v): the change of :func:`hydrodynamic_force` at velocity v (n, 3) [mm/s] and
+    command u (n, 3) [Hz] when the water moves at w ((3,) or (n, 3) [mm/s]). Both in one call on the rows
+    stacked, component-major: the rollouts step a few hundred rows, where numpy's per-call cost, not the
+    arithmetic, is what a second call would add."""
+    n, vt, ut = len(v), v.T, u.T
+    both = np.concatenate([vt - np.asarray(w, dtype=float).T.reshape(3, -1), vt], axis=1)
+    sin_a, lift = _angle_terms_t(both, np.concatenate([ut, ut], axis=1))
+    f = params.get("Cl0", 0.0) * lift - (params.get("Cd0", 0.0) * sin_a + params.get("Cd1", 0.0)) * both
+    return (f[:, :n] - f[:, n:]).T
+
+
 def _centring_t(p, pb):
     """sin(pi |p| / |P_b|) c_hat (3, n) of :func:`geometry`, component-major."""
     pn = np.sqrt(_sum3(p * p, 0))
@@ -323,11 +335,14 @@ class PhysicalModel(Model):
         drive[2] += th[4]
         cent = _centring_t(p, self._pb)
         calls = self._term_calls(th, groups) if self.terms else ()
+        # a velocity term's force at rest, (3, n) or None: the same for both passes
+        at_rest = [call(term, p, np.zeros_like(v), f) if moving else None
+                   for term, moving, call in zip(self.terms, self._velocity_terms(), calls)]
         if not self._exact:  # the paper's scheme: the geometry at the last step's velocity
-            return self._pass_t(x, u, f, drive, cent, v, h, th, calls)
+            return self._pass_t(x, u, f, drive, cent, v, h, th, calls, at_rest)
         # first pass: the geometry at a prediction of the step's mean velocity that knows only the thrust and Cd1
-        out = self._pass_t(x, u, f, drive, cent, decay * v + (s * h * f1) * drive, h, th, calls)
-        return self._pass_t(x, u, f, drive, cent, out[3:], h, th, calls)
+        out = self._pass_t(x, u, f, drive, cent, decay * v + (s * h * f1) * drive, h, th, calls, at_rest)
+        return self._pass_t(x, u, f, drive, cent, out[3:], h, th, calls, at_rest)
 
     def _term_calls(self, th, groups) -> list:
         """Per extra term, its force on (p, v, u) (3, n) with this step's parameters (a group's, under set_groups)."""
@@ -337,9 +352,10 @@ class PhysicalModel(Model):
         named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
         return [_one_call(prm) for prm in _terms_params(self.terms, named)]
 
-    def _pass_t(self, x, u, f, drive, cent, v_geo, h, th, calls):
+    def _pass_t(self, x, u, f, drive, cent, v_geo, h, th, calls, at_rest):
         """:meth:`_step_t`'s one pass: the drive and the centring force (3, n) held, the angle terms and the extra
-        terms taken at ``v_geo`` (3, n) [mm/s]; the step's new state (6, n)."""
+        terms taken at ``v_geo`` (3, n) [mm/s] (``at_rest``: each velocity term's force at zero velocity, else
+        None); the step's new state (6, n)."""
         p, v = x[:3], x[3:]
         s = self._scale
         sin_a, lift = _angle_terms_t(v_geo, u)
@@ -349,12 +365,11 @@ class PhysicalModel(Model):
         drag = th[1] * sin_a + th[2]
         if self.terms:
             slowing = 0.0
-            for term, moving, call in zip(self.terms, self._velocity_terms(), calls):
+            for term, rest, call in zip(self.terms, at_rest, calls):
                 ft = call(term, p, v_geo, f)
                 a += ft
-                if moving:  # the part of its force that grows with the velocity, along it
-                    ft = ft - call(term, p, np.zeros_like(v_geo), f)
-                    slowing = slowing - _sum3(ft * v_geo, 0)
+                if rest is not None:  # the part of its force that grows with the velocity, along it
+                    slowing = slowing - _sum3((ft - rest) * v_geo, 0)
             # a drag among the terms joins the exact decay (a stiff quadratic drag cannot blow up): rate
             # lambda_e = -(F(v) - F(0)) . v / |v|^2 >= 0, and lambda_e v is given back to the held forces
             extra = np.maximum(slowing, 0.0) / np.maximum(_sum3(v_geo * v_geo, 0), 1e-12)
