@@ -284,7 +284,7 @@ ROWS = (
         "beforehand; each pair's minimum over 5 passes)", "`pair_ms` median <= 2 ms", ("camera",), _camera),
     Row("diagnose.py", "`cosim diagnose` on five 3,000-row logs",
         "<= 20 s (round 3); <= 60 s with the stepwise search (issue 33)",
-        ("diagnose_jobs2_79af89a", "diagnose_jobs2_0940a22", "diagnose_jobs2_2bb3b17", "diagnose_jobs2_775c2b1",
+        ("diagnose_jobs2_21cc104", "diagnose_jobs2_79af89a", "diagnose_jobs2_0940a22", "diagnose_jobs2_2bb3b17", "diagnose_jobs2_775c2b1",
          "diagnose_jobs2_222c636", "diagnose_jobs2_fa604e4", "diagnose_jobs2_010912a", "diagnose_jobs2",
          "diagnose_jobs1"), _diagnose),
     Row("archive.py", "`cosim diagnose` on 5, 20 and 120 logs of 60 s from the blind bench's simulator "
@@ -304,7 +304,7 @@ ROWS = (
         ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56",
          "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
          "blind_s76", "blind_s78", "blind_s81", "blind_s83", "blind_s86", "blind_outside_s93", "blind_none_s95",
-         "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112"),
+         "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112", "blind_s113"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
@@ -448,7 +448,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
     ("blind_groups_s108", "seed 108 (fresh, 55af7eb: a flow dropped as a swirl's uniform part comes back when the "
                           "form found without it holds no flow)"),
     ("blind_groups_s109", "seed 109 (fresh, multi only, 023d7ce: the same diagnosis)"),
-    ("blind_groups_s110", "seed 110 (fresh, multi only, 07f9cb6: every drag through the water beside a flow)"))
+    ("blind_groups_s110", "seed 110 (fresh, multi only, 07f9cb6: every drag through the water beside a flow)"),
+    ("blind_s113", "seed 113 (fresh, multi beside the single-effect groups, 2d90968: every open-loop fit with the "
+                   "evaluation's two passes)"))
 
 
 def several_effects_table() -> str:
