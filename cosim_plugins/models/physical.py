@@ -114,9 +114,13 @@ def _angle_terms_t(v, u):
 def hydrodynamic_force(v: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
     """(n, 3) [uN] drag and lift of Eq. 2-5 at velocity v (n, 3) [mm/s] through the water, command u (n, 3) [Hz]:
     -(Cd0 sin(alpha) + Cd1) v + Cl0 sin(2 alpha) |v| v_perp (``params``: Cd0, Cd1, Cl0; a missing one is 0)."""
-    sin_a, lift = _angle_terms_t(v.T, u.T)
-    cd = params.get("Cd0", 0.0) * sin_a + params.get("Cd1", 0.0)
-    return params.get("Cl0", 0.0) * lift.T - cd[:, None] * v
+    return _hydrodynamic_force_t(v.T, u.T, params).T
+
+
+def _hydrodynamic_force_t(v, u, params: dict):
+    """:func:`hydrodynamic_force` on component-major arrays, v, u (3, n) -> (3, n)."""
+    sin_a, lift = _angle_terms_t(v, u)
+    return params.get("Cl0", 0.0) * lift - (params.get("Cd0", 0.0) * sin_a + params.get("Cd1", 0.0)) * v
 
 
 def flow_force(v: np.ndarray, w: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
@@ -126,8 +130,7 @@ def flow_force(v: np.ndarray, w: np.ndarray, u: np.ndarray, params: dict) -> np.
     arithmetic, is what a second call would add."""
     n, vt, ut = len(v), v.T, u.T
     both = np.concatenate([vt - np.asarray(w, dtype=float).T.reshape(3, -1), vt], axis=1)
-    sin_a, lift = _angle_terms_t(both, np.concatenate([ut, ut], axis=1))
-    f = params.get("Cl0", 0.0) * lift - (params.get("Cd0", 0.0) * sin_a + params.get("Cd1", 0.0)) * both
+    f = _hydrodynamic_force_t(both, np.concatenate([ut, ut], axis=1), params)
     return (f[:, :n] - f[:, n:]).T
 
 
