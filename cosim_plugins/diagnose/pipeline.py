@@ -310,12 +310,13 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         result.discovered, source, found_fit = discover_on(final)
         by_name = {e.name: e for e in candidates}
         if found_fit is not None and selection.steps and _discovered_passes(result.discovered):
-            def trial_or_final(fit, exclude=None):  # a stand-in's trial (terms excluded) runs quietly
-                return discover_on(fit) if exclude is None else discover_on(fit, lambda m: None, exclude)
+            def trial_or_final(fit, exclude=None, form=None):  # a stand-in's trial (terms excluded) runs quietly
+                return discover_on(fit, form=form) if exclude is None else discover_on(fit, lambda m: None, exclude)
 
             gone, again = drop_stand_ins(
                 fitter, selection, by_name, trial_or_final,
-                lambda sel: left_after_removal(fitter, sel, by_name, floor[s.reference], s.reference, say),
+                lambda sel, found: left_after_removal(fitter, sel, by_name, floor[s.reference], s.reference, say,
+                                                      found),
                 floor[s.reference], s.reference, say)
             if gone:
                 final = selection.final

@@ -468,14 +468,22 @@ def _drop_weakest(sel: Selection, trials: list, floor: float | None, key: str, s
     return True
 
 
-def left_after_removal(fitter, sel: Selection, by_name: dict, floor: float | None, key: str, say) -> list:
+def left_after_removal(fitter, sel: Selection, by_name: dict, floor: float | None, key: str, say,
+                       found=None) -> list:
     """The steps left once others were taken out of ``sel`` (stand-ins for a form outside the library), each
     measured again given the other steps left (in place): a drop measured given an effect no longer in the model
     is not one. A step that then fails the gates is dropped, weakest first, as the backward check drops one;
     returns those drops (``sel.dropped``'s new entries). A background flow chosen first and a gradient force
     given it, the flow then dropped as a stand-in: the force's drop given the flow said nothing of the force
-    alone."""
-    before = len(sel.dropped)
+    alone.
+
+    With ``found`` (``sel.final`` refitted with the form discovered once the stand-ins are out, its last effect),
+    each is measured given that form too (``given`` ends with :data:`DISCOVERED`), and ``sel.final`` stays
+    without it: the form takes the stand-in's place, and a step that earned its place beside the stand-in only
+    (a step-out beside the uniform flow standing in for a shear) earns it beside the form, not alone."""
+    before, bare, bare_fitter = len(sel.dropped), sel.final, fitter
+    if found is not None:
+        fitter, sel.final = fitter.beside([found.model.effects[-1]]), found
     while sel.steps:
         trials = _given_the_others(fitter, sel, by_name)
         if _drop_weakest(sel, trials, floor, key, say):
@@ -484,8 +492,12 @@ def left_after_removal(fitter, sel: Selection, by_name: dict, floor: float | Non
             step = sel.steps[i]
             if not step.is_group:
                 sel.steps[i] = replace(step, entry=entry, before=without, fit=sel.final,
-                                       given=[s.effects[0] for j, s in enumerate(sel.steps) if j != i])
+                                       given=[s.effects[0] for j, s in enumerate(sel.steps) if j != i]
+                                       + ([DISCOVERED] if found is not None else []))
         break
+    if found is not None:  # the form out again: the model with the steps kept (refitted when some went)
+        sel.final = (bare if len(sel.dropped) == before else
+                     bare_fitter.without(sel.final, [by_name[s.effects[0]] for s in sel.steps]))
     return sel.dropped[before:]
 
 

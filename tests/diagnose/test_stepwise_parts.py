@@ -330,8 +330,17 @@ class _Sets:
     def refit(self, model):
         return self._fit(model.effects)
 
+    added = ()
+
+    def beside(self, effects):
+        import copy
+
+        other = copy.copy(self)
+        other.added = (*self.added, *effects)
+        return other
+
     def without(self, final, keep):
-        return self._fit({e.name for e in keep})
+        return self._fit({e.name for e in (*self.added, *keep)})
 
     def entry(self, effect, fit, identifiable, before):
         err = fit.error("1.0")
@@ -577,6 +586,37 @@ def test_an_effect_chosen_given_a_stand_in_is_measured_again_once_it_is_out(forc
         return
     force, = sel.steps
     assert force.given == [] and force.entry["reduction"] == pytest.approx(0.35) and force.before.error("1.0") == 1.0
+
+
+@pytest.mark.parametrize("force_with_form, kept", [(0.35, True), (0.69, False)])
+def test_an_effect_left_once_a_stand_in_is_out_is_measured_given_the_form_that_took_its_place(force_with_form, kept):
+    """A uniform flow chosen first (1.0 -> 0.6 mm) and a step-out given it (0.6 -> 0.4 mm); the flow goes as a
+    stand-in for a shear, whose form is found on what is left (0.7 mm without the step-out). Alone the step-out
+    lowers the error by 5 %; given the form it leaves ``force_with_form``: at 0.35 mm (50 %) it stays, its drop
+    given the form, and the model left has no form in it; at 0.69 mm it is dropped."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import left_after_removal, rank, select
+
+    names = ("background_flow", "step_out")
+    fitter = _Told({(): 1.0, ("background_flow",): 0.6, ("step_out",): 0.95, ("background_flow", "step_out"): 0.4,
+                    ("shear",): 0.7, ("shear", "step_out"): force_with_form})
+    effects = [SimpleNamespace(name=n) for n in names]
+    by_name = {e.name: e for e in effects}
+    start = fitter._fit(())
+    sel = select(fitter, start, effects, rank(fitter, start, effects, "1.0"), 3, {"1.0": 0.1}, "1.0")
+    assert sel.chosen == ["background_flow", "step_out"]
+    sel.steps.pop(0)  # the stand-in goes (standin.stand_ins)
+    bare = sel.final = fitter.without(sel.final, [by_name["step_out"]])
+    found = fitter._fit({"shear", "step_out"})
+    found.model.effects = [SimpleNamespace(name="shear")]  # the discovered form comes last
+    left_after_removal(fitter, sel, by_name, 0.1, "1.0", lambda m: None, found)
+    if not kept:
+        assert sel.chosen == [] and sel.dropped[-1]["effect"] == "step_out" and sel.final.error("1.0") == 1.0
+        return
+    step, = sel.steps
+    assert step.given == ["discovered"] and step.entry["reduction"] == pytest.approx(0.5)
+    assert step.before.error("1.0") == 0.7 and sel.final is bare
 
 
 @pytest.mark.parametrize("lag_with_form, dropped", [(0.31, True), (0.5, False)])
