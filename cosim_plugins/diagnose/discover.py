@@ -50,6 +50,7 @@ per the feature's unit.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -201,17 +202,7 @@ def _compiled(expr: str):
 def term_force(terms, coefs, p, v, u, host: dict | None = None) -> np.ndarray:
     """(n, 3) force [uN] of ``terms`` with coefficients ``coefs`` at p, v, u (n, 3); the flow terms' force goes
     through the drag and lift of ``host`` (its parameters: Cd0, Cd1, Cl0), which they need."""
-    ns = None
-    f = np.zeros((len(p), 3))
-    w = None  # the flow terms' water velocity [mm/s]
-    for t, c in zip(terms, coefs):
-        if c != 0.0:
-            ns = _LazyNamespace(p, v, u) if ns is None else ns
-            if t.flow and w is None:
-                w = np.zeros((len(p), 3))
-            out = w if t.flow else f
-            for a, expr in t.parts:
-                out[:, a] += c * eval(_compiled(expr), {"np": np}, ns)  # noqa: S307 (this module's own table)
+    f, w = _term_sums(terms, coefs, p, v, u)
     if w is not None:
         if host is None:
             raise ValueError("a flow term's force needs the host model's drag parameters")
@@ -219,17 +210,45 @@ def term_force(terms, coefs, p, v, u, host: dict | None = None) -> np.ndarray:
     return f
 
 
+def term_water(terms, coefs, p) -> np.ndarray:
+    """(n, 3) water velocity [mm/s] at p (n, 3) [mm] that the flow terms among ``terms`` set (coefficients
+    ``coefs``); zero without one. Flow terms depend on position only."""
+    w = _term_sums(terms, coefs, p, None, None, flows_only=True)[1]
+    return np.zeros((len(p), 3)) if w is None else w
+
+
+def _term_sums(terms, coefs, p, v, u, flows_only: bool = False) -> tuple:
+    """(the force terms' sum (n, 3) [uN], the flow terms' water velocity (n, 3) [mm/s] or None without one)."""
+    ns = None
+    f = np.zeros((len(p), 3))
+    w = None
+    for t, c in zip(terms, coefs):
+        if c != 0.0 and (t.flow or not flows_only):
+            ns = _LazyNamespace(p, v, u) if ns is None else ns
+            if t.flow and w is None:
+                w = np.zeros((len(p), 3))
+            out = w if t.flow else f
+            for a, expr in t.parts:
+                out[:, a] += c * eval(_compiled(expr), {"np": np}, ns)  # noqa: S307 (this module's own table)
+    return f, w
+
+
 def library_effect(terms, scales, name: str = "discovered", coefs=None) -> Effect:
-    """An :class:`Effect` whose parameters are the coefficients of ``terms`` (typical sizes ``scales``)."""
+    """An :class:`Effect` whose parameters are the coefficients of ``terms`` (typical sizes ``scales``). With flow
+    terms it is a flow varying with position (``water_at``): the other drags act on the velocity through it."""
     coefs = np.zeros(len(terms)) if coefs is None else np.asarray(coefs, dtype=float)
     params = tuple(EffectParam(t.name, float(c), unit=_coef_unit(t), scale=float(s))
                    for t, c, s in zip(terms, coefs, scales))
+    flows = [t for t in terms if t.flow]
 
     def force(p, v, u, prm):
         return term_force(terms, [prm[t.name] for t in terms], p, v, u, prm)
 
+    def water_at(p, prm):
+        return term_water(flows, [prm[t.name] for t in flows], p)
+
     return Effect(name=name, params=params, force=force, doc="a sparse combination of candidate force terms",
-                  terms=tuple(t.name for t in terms))
+                  terms=tuple(t.name for t in terms), water_at=water_at if flows else None)
 
 
 def _coef_unit(t: Term) -> str:
@@ -608,7 +627,8 @@ def _reading(terms, coefs: dict, host: dict) -> str | None:
 
 
 def effect_source(terms, coefs: dict, scales, words) -> str:
-    """An effect file registering ``discovered`` with these terms (initial values: the fitted coefficients)."""
+    """An effect file registering ``discovered`` with these terms (initial values: the fitted coefficients); its
+    flow terms, if any, in a ``discovered_water(p, params)`` that is also the effect's ``water_at``."""
     flows = any(t.flow for t in terms)
     lines = [
         '"""A missing effect discovered by `cosim diagnose --discover`: a sparse combination of force terms'
@@ -631,9 +651,29 @@ def effect_source(terms, coefs: dict, scales, words) -> str:
         "",
         f"TANK_HALF_MM = {WALL_MM}",
         "",
-        "",
-        "def discovered_force(p, v, u, params):",
-        '    """(n, 3) force [uN] at p, v, u (n, 3)."""',
+    ]
+    if flows:  # the water's velocity: the flow's own force, and every other drag acts through it
+        lines += ["", "def discovered_water(p, params):",
+                  '    """(n, 3) the water\'s velocity [mm/s] at p (n, 3) [mm]."""',
+                  *_term_lines([t for t in terms if t.flow], "w"), "    return w", ""]
+    lines += ["", "def discovered_force(p, v, u, params):", '    """(n, 3) force [uN] at p, v, u (n, 3)."""',
+              *_term_lines([t for t in terms if not t.flow], "f")]
+    if flows:  # drag and lift act on the velocity through the water
+        lines += ["    w = discovered_water(p, params)",
+                  "    f += hydrodynamic_force(v - w, u, params) - hydrodynamic_force(v, u, params)"]
+    lines += ["    return f", "", "", "DISCOVERED = Effect(", '    name="discovered",', "    params=("]
+    for t, s in zip(terms, scales):
+        lines.append(f'        EffectParam("{t.name}", {coefs[t.name]!r}, unit="{_coef_unit(t)}", scale={float(s)!r}),')
+    lines += ["    ),", "    force=discovered_force,", *(["    water_at=discovered_water,"] if flows else []),
+              f"    doc={' '.join(words)!r},", ")", "", "", "@hookimpl", "def cosim_register_effects(register):",
+              "    register(DISCOVERED)", ""]
+    return "\n".join(lines)
+
+
+def _term_lines(terms, out: str) -> list:
+    """An effect file's lines that sum ``terms`` into ``out`` (n, 3) from p, v, u (n, 3), defining only the names
+    the terms read."""
+    names = [
         "    x, y, z = p[:, 0], p[:, 1], p[:, 2]",
         "    vx, vy, vz = v[:, 0], v[:, 1], v[:, 2]",
         "    ux, uy, uz = u[:, 0], u[:, 1], u[:, 2]",
@@ -641,23 +681,12 @@ def effect_source(terms, coefs: dict, scales, words) -> str:
         "    speed = np.linalg.norm(v, axis=1)",
         "    spin = np.linalg.norm(u, axis=1)",
         "    wall = np.maximum(TANK_HALF_MM - np.max(np.abs(p), axis=1), 0.0)  # distance to the nearest wall [mm]",
-        "    f = np.zeros_like(p, dtype=float)",
-        *(["    w = np.zeros_like(p, dtype=float)  # the water's velocity [mm/s]"] if flows else []),
     ]
-    del_unused = {"speed": "speed", "spin": "spin", "wall": "wall", "one": "one"}
-    used = " ".join(e for t in terms for _, e in t.parts)
-    lines = [ln for ln in lines if not any(ln.strip().startswith(f"{k} =") and k not in used
-                                           for k in del_unused)]
+    used = set(re.findall(r"[a-z]+", " ".join(e for t in terms for _, e in t.parts)))
+    lines = [ln for ln in names if used & set(ln.split("=")[0].replace(",", " ").split())]
+    lines.append(f"    {out} = np.zeros_like(p, dtype=float)")
     for t in terms:
-        lines += [f'    {"w" if t.flow else "f"}[:, {a}] += params["{t.name}"] * '
-                  f'{"(" + e + ")" if e.startswith("-") else e}  # along {AXES[a]}: {t.words}' for a, e in t.parts]
-    if flows:  # drag and lift act on the velocity through the water
-        lines.append("    f += hydrodynamic_force(v - w, u, params) - hydrodynamic_force(v, u, params)")
-    lines += ["    return f", "", "", "DISCOVERED = Effect(", '    name="discovered",', "    params=("]
-    for t, s in zip(terms, scales):
-        lines.append(f'        EffectParam("{t.name}", {coefs[t.name]!r}, unit="{_coef_unit(t)}", scale={float(s)!r}),')
-    lines += ["    ),", "    force=discovered_force,",
-              f"    doc={' '.join(words)!r},", ")", "", "", "@hookimpl", "def cosim_register_effects(register):",
-              "    register(DISCOVERED)", ""]
-    return "\n".join(lines)
+        lines += [f'    {out}[:, {a}] += params["{t.name}"] * {"(" + e + ")" if e.startswith("-") else e}'
+                  f"  # along {AXES[a]}: {t.words}" for a, e in t.parts]
+    return lines
 

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from cosim.contract.errors import UserError
 from cosim_plugins.identify.effect import Effect, EffectParam
 from cosim_plugins.models.physical import flow_force
 
@@ -43,12 +44,18 @@ def _unit(a: np.ndarray) -> np.ndarray:
     return a / _safe(_norm(a))
 
 
-def through_water(v: np.ndarray, prm) -> np.ndarray:
-    """(n, 3) velocity [mm/s] relative to the water: v (n, 3) less the water's horizontal velocity that a flow in
-    the model sets (``prm["water_x"]``, ``prm["water_y"]``; still water without a flow). Every drag acts on it."""
-    if "water_x" not in prm:
-        return v
-    return v - np.array([prm["water_x"], prm["water_y"], 0.0])
+def through_water(v: np.ndarray, prm, p: np.ndarray | None = None) -> np.ndarray:
+    """(n, 3) velocity [mm/s] relative to the water: v (n, 3) less the water's velocity that the flows in the
+    model set: a uniform one (``prm["water_x"]``, ``prm["water_y"]``) and one varying with position at p (n, 3)
+    [mm] (``prm["water_at"]``: a discovered shear or swirl); still water without a flow. Every drag acts on it."""
+    if "water_x" in prm:
+        v = v - np.array([prm["water_x"], prm["water_y"], 0.0])
+    if "water_at" in prm:
+        if p is None:
+            raise UserError("a flow in the model varies with position: a drag's through_water(v, params, p) needs "
+                            "the position p")
+        v = v - prm["water_at"](p)
+    return v
 
 
 def wall_distance_mm(p: np.ndarray) -> np.ndarray:
@@ -83,7 +90,7 @@ BACKGROUND_FLOW = Effect(
 def _wall_drag(p, v, u, prm):
     ell = prm["ell"]
     gain = ell / (wall_distance_mm(p) + ell)
-    return -(prm["c"] * gain)[:, None] * through_water(v, prm)
+    return -(prm["c"] * gain)[:, None] * through_water(v, prm, p)
 
 
 WALL_DRAG = Effect(
@@ -173,7 +180,7 @@ GRADIENT_FORCE = Effect(
 
 def _anisotropic_drag(p, v, u, prm):
     a = _unit(u)
-    vr = through_water(v, prm)
+    vr = through_water(v, prm, p)
     v_perp = vr - _dot(vr, a)[:, None] * a
     return -prm["c"] * v_perp
 
@@ -196,7 +203,7 @@ ANISOTROPIC_DRAG = Effect(
 
 
 def _quadratic_drag(p, v, u, prm):
-    vr = through_water(v, prm)
+    vr = through_water(v, prm, p)
     return -prm["c"] * _norm(vr) * vr
 
 

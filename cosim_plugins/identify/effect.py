@@ -17,7 +17,11 @@ An effect is one of three kinds:
     holds it, every force effect's ``params`` also hold ``water_x`` and
     ``water_y`` [mm/s], the water's horizontal velocity, so an extra drag
     acts on the velocity relative to the water as the host's drag does
-    (:func:`water_params`).
+    (:func:`water_params`). A flow that varies with position (a discovered
+    shear or swirl) gives ``water_at(p, params) -> (n, 3)`` [mm/s] instead;
+    the other effects' ``params`` then hold ``water_at``, the water's
+    velocity as a function of p (n, 3) [mm]
+    (:func:`cosim_plugins.effects.forces.through_water` subtracts both).
 ``input``
     ``transform(u, dt_s, params) -> (n, 3)``: the command the plant actually
     follows, from the logged command timeline u (n, 3) [Hz] of one
@@ -108,6 +112,8 @@ class Effect:
             a model file stores these and the coefficients, not code.
         water: for a flow, the names of its two parameters that are the water's horizontal velocity
             (x, y) [mm/s] (see the module doc).
+        water_at: for a flow that varies with position, ``water_at(p, params) -> (n, 3)``: the water's
+            velocity [mm/s] at p (n, 3) [mm], ``params`` the effect's own by short name (see the module doc).
     """
 
     name: str
@@ -121,6 +127,7 @@ class Effect:
     lookback: Callable | None = None
     terms: tuple[str, ...] = field(default=())
     water: tuple[str, ...] = field(default=())
+    water_at: Callable | None = None
 
     def param_names(self) -> list[str]:
         """Fully qualified names ``effect.param`` used in models, reports and files."""
@@ -144,12 +151,33 @@ WATER_NAMES = ("water_x", "water_y")
 
 
 def water_params(effects, params: dict) -> dict:
-    """{"water_x", "water_y"}: the water's horizontal velocity [mm/s] that the flows among ``effects`` (those
-    naming ``water``) set, summed, read from the fully qualified ``params``; {} when no effect is a flow."""
+    """{"water_x", "water_y"}: the water's horizontal velocity [mm/s] that the uniform flows among ``effects``
+    (those naming ``water``) set, summed, read from the fully qualified ``params``; and "water_at" (a
+    :class:`WaterAt`) when flows vary with position (those with ``water_at``). {} when no effect is a flow."""
+    out = {}
     flows = [e for e in effects if getattr(e, "water", ())]
-    if not flows:
-        return {}
-    return {key: sum(float(params[f"{e.name}.{e.water[i]}"]) for e in flows) for i, key in enumerate(WATER_NAMES)}
+    if flows:
+        out = {key: sum(float(params[f"{e.name}.{e.water[i]}"]) for e in flows) for i, key in enumerate(WATER_NAMES)}
+    varying = [e for e in effects if getattr(e, "water_at", None) is not None]
+    if varying:
+        out["water_at"] = WaterAt(tuple((e.water_at, tuple((q.name, float(params[f"{e.name}.{q.name}"]))
+                                                          for q in e.params)) for e in varying))
+    return out
+
+
+@dataclass(frozen=True)
+class WaterAt:
+    """The water's velocity that flows varying with position set: ``WaterAt(p)`` -> (n, 3) [mm/s] at p (n, 3)
+    [mm], summed over ``flows`` ((each flow's ``water_at``, its own parameters as (name, value) pairs), ...).
+    Equal when the flows and their values are: a model's parameter groups that agree on them share a call."""
+
+    flows: tuple
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        w = np.zeros(np.shape(p))
+        for water_at, own in self.flows:
+            w = w + water_at(p, dict(own))
+        return w
 
 
 def check_effect(obj, source: str = "") -> Effect:

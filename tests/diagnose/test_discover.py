@@ -176,8 +176,12 @@ def test_a_flow_term_is_the_water_velocity_acting_through_the_drag(tmp_path, fre
     """A flow term's coefficient is the water's velocity w (mm/s per the feature's unit), its force H(v - w) - H(v)
     through the host's drag and lift. With an isotropic linear drag that is Cd1 w, the force term of coefficient
     Cd1 x the flow's; with a drag across the body (Cd0) it turns with the heading, which no force term does. The
-    reading is the same physics in either units, and the effect file written for a flow form gives its force."""
-    from cosim_plugins.identify.effect import known_effects, load_effect_files
+    reading is the same physics in either units, and the effect file written for a flow form gives its force and
+    its water, through which every other drag acts (a wall drag on v - w)."""
+    from cosim.contract.errors import UserError
+    from cosim_plugins.effects.forces import TANK_HALF_MM as WALL_DRAG_HALF_MM
+    from cosim_plugins.effects.forces import WALL_DRAG, through_water
+    from cosim_plugins.identify.effect import known_effects, load_effect_files, water_params
     from cosim_plugins.models.physical import hydrodynamic_force
 
     rng = np.random.default_rng(7)
@@ -206,8 +210,18 @@ def test_a_flow_term_is_the_water_velocity_acting_through_the_drag(tmp_path, fre
     path = tmp_path / "discovered_effect.py"
     path.write_text(D.effect_source(flows, dict(zip([t.name for t in flows], w_coefs)), [1.0, 0.01, 0.01], words))
     assert load_effect_files([path]) == ["discovered"]
-    got = known_effects()["discovered"].force(p, v, u, {**host, **{t.name: c for t, c in zip(flows, w_coefs)}})
-    assert got == pytest.approx(want, abs=1e-12)
+    own = {t.name: c for t, c in zip(flows, w_coefs)}
+    loaded = known_effects()["discovered"]
+    assert loaded.force(p, v, u, {**host, **own}) == pytest.approx(want, abs=1e-12)
+    # a flow varying with position: every other drag acts on the velocity through it, in the file as in the table
+    gain = 9.0 / (WALL_DRAG_HALF_MM - np.abs(p).max(axis=1).clip(max=WALL_DRAG_HALF_MM) + 9.0)
+    for flow in (loaded, D.library_effect(flows, [1.0, 0.01, 0.01], coefs=w_coefs)):
+        assert flow.water_at(p, own) == pytest.approx(w, abs=1e-12)
+        prm = {**host, **water_params([flow, WALL_DRAG], {f"discovered.{n}": c for n, c in own.items()}),
+               "c": 0.4, "ell": 9.0}
+        assert WALL_DRAG.force(p, v, u, prm) == pytest.approx(-0.4 * gain[:, None] * (v - w), abs=1e-12)
+    with pytest.raises(UserError, match=r"varies with position: a drag's through_water\(v, params, p\)"):
+        through_water(v, prm)  # a drag of one's own that does not pass the position
 
 
 def test_a_flow_form_is_its_force_form_over_the_drag_and_holds_its_uniform_part_alike():
