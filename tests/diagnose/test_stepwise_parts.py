@@ -557,26 +557,33 @@ def test_a_look_alike_group_is_named_once_the_discovered_form_tells_its_members_
     assert model.model.effects == {"actuation_lag", "swirl"} and step.fit is model
 
 
+def _a_stand_in_gone(second: str, errors: dict):
+    """(fitter, selection, effects by name): a uniform flow chosen first (1.0 -> 0.6 mm) and ``second`` given it
+    (0.6 -> 0.4 mm; ``errors`` the other sets'), the flow then taken out as a stand-in (standin.stand_ins)."""
+    from types import SimpleNamespace
+
+    from cosim_plugins.diagnose.stepwise import rank, select
+
+    fitter = _Told({(): 1.0, ("background_flow",): 0.6, ("background_flow", second): 0.4, **errors})
+    effects = [SimpleNamespace(name=n) for n in ("background_flow", second)]
+    by_name = {e.name: e for e in effects}
+    start = fitter._fit(())
+    sel = select(fitter, start, effects, rank(fitter, start, effects, "1.0"), 3, {"1.0": 0.1}, "1.0")
+    assert sel.chosen == ["background_flow", second]
+    sel.steps.pop(0)
+    sel.final = fitter.without(sel.final, [by_name[second]])
+    return fitter, sel, by_name
+
+
 @pytest.mark.parametrize("force_alone, named", [(0.95, []), (0.65, ["gradient_force"])])
 def test_an_effect_chosen_given_a_stand_in_is_measured_again_once_it_is_out(force_alone, named):
     """A uniform flow chosen first (1.0 -> 0.6 mm) and a gradient force given it (0.6 -> 0.4 mm); the flow then
     goes as a stand-in for a form outside the library. The force's drop given the flow says nothing of the force
     without it: measured again against the model without either, a force that lowers the error by 5 % is dropped
     (nothing is named), one that lowers it by 35 % stays, its drop given nothing."""
-    from types import SimpleNamespace
+    from cosim_plugins.diagnose.stepwise import left_after_removal
 
-    from cosim_plugins.diagnose.stepwise import left_after_removal, rank, select
-
-    names = ("background_flow", "gradient_force")
-    fitter = _Told({(): 1.0, ("background_flow",): 0.6, ("gradient_force",): force_alone,
-                    ("background_flow", "gradient_force"): 0.4})
-    effects = [SimpleNamespace(name=n) for n in names]
-    by_name = {e.name: e for e in effects}
-    start = fitter._fit(())
-    sel = select(fitter, start, effects, rank(fitter, start, effects, "1.0"), 3, {"1.0": 0.1}, "1.0")
-    assert sel.chosen == ["background_flow", "gradient_force"]
-    sel.steps.pop(0)  # the stand-in goes (standin.stand_ins)
-    sel.final = fitter.without(sel.final, [by_name["gradient_force"]])
+    fitter, sel, by_name = _a_stand_in_gone("gradient_force", {("gradient_force",): force_alone})
     said = []
     left_after_removal(fitter, sel, by_name, 0.1, "1.0", said.append)
     assert sel.chosen == named
@@ -596,18 +603,11 @@ def test_an_effect_left_once_a_stand_in_is_out_is_measured_given_the_form_that_t
     given the form, and the model left has no form in it; at 0.69 mm it is dropped."""
     from types import SimpleNamespace
 
-    from cosim_plugins.diagnose.stepwise import left_after_removal, rank, select
+    from cosim_plugins.diagnose.stepwise import left_after_removal
 
-    names = ("background_flow", "step_out")
-    fitter = _Told({(): 1.0, ("background_flow",): 0.6, ("step_out",): 0.95, ("background_flow", "step_out"): 0.4,
-                    ("shear",): 0.7, ("shear", "step_out"): force_with_form})
-    effects = [SimpleNamespace(name=n) for n in names]
-    by_name = {e.name: e for e in effects}
-    start = fitter._fit(())
-    sel = select(fitter, start, effects, rank(fitter, start, effects, "1.0"), 3, {"1.0": 0.1}, "1.0")
-    assert sel.chosen == ["background_flow", "step_out"]
-    sel.steps.pop(0)  # the stand-in goes (standin.stand_ins)
-    bare = sel.final = fitter.without(sel.final, [by_name["step_out"]])
+    fitter, sel, by_name = _a_stand_in_gone("step_out", {("step_out",): 0.95, ("shear",): 0.7,
+                                                         ("shear", "step_out"): force_with_form})
+    bare = sel.final
     found = fitter._fit({"shear", "step_out"})
     found.model.effects = [SimpleNamespace(name="shear")]  # the discovered form comes last
     left_after_removal(fitter, sel, by_name, 0.1, "1.0", lambda m: None, found)
