@@ -304,7 +304,7 @@ ROWS = (
         ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56",
          "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
          "blind_s76", "blind_s78", "blind_s81", "blind_s83", "blind_s86", "blind_outside_s93", "blind_none_s95",
-         "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112", "blind_s113"),
+         "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112", "blind_s113", "blind_s115"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
@@ -450,7 +450,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
     ("blind_groups_s109", "seed 109 (fresh, multi only, 023d7ce: the same diagnosis)"),
     ("blind_groups_s110", "seed 110 (fresh, multi only, 07f9cb6: every drag through the water beside a flow)"),
     ("blind_s113", "seed 113 (fresh, multi beside the single-effect groups, 2d90968: every open-loop fit with the "
-                   "evaluation's two passes)"))
+                   "evaluation's two passes)"),
+    ("blind_s115", "seed 115 (fresh, multi beside the single-effect groups, 2b445de: the effects left once a "
+                   "stand-in is out measured given the form, drags through a discovered flow)"))
 
 
 def several_effects_table() -> str:
