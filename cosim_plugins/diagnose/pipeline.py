@@ -77,7 +77,9 @@ from cosim_plugins.diagnose.result import (
     Stepwise,
 )
 from cosim_plugins.diagnose.standin import (
+    beside_form,
     drop_stand_ins,
+    form_passes,
     holds_own_form,
     in_place_of_terms,
     own_law_misfit,
@@ -94,7 +96,6 @@ from cosim_plugins.diagnose.stepwise import (
 )
 from cosim_plugins.diagnose.verdict import BLOCK_S as VERDICT_BLOCK_S
 from cosim_plugins.diagnose.verdict import (
-    MIN_REDUCTION,
     MIN_T,
     discovered_explains,
     fit_notes,
@@ -309,7 +310,14 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
 
         result.discovered, source, found_fit = discover_on(final)
         by_name = {e.name: e for e in candidates}
-        if found_fit is not None and selection.steps and _discovered_passes(result.discovered):
+        beside = beside_form(fitter, selection, by_name, lambda fit: discover_on(fit, lambda m: None),
+                             (result.discovered, source, found_fit), floor[s.reference], s.reference, say)
+        if beside is not None:  # an effect dropped as tentative earns its place beside the form found with it
+            step, final, (result.discovered, source, found_fit) = beside
+            selection.steps.append(step)
+            selection.final = final
+            _after_drops(result.stepwise, selection, [], s.reference)
+        if found_fit is not None and selection.steps and form_passes(result.discovered):
             def trial_or_final(fit, exclude=None, form=None):  # a stand-in's trial (terms excluded) runs quietly
                 return discover_on(fit, form=form) if exclude is None else discover_on(fit, lambda m: None, exclude)
 
@@ -317,7 +325,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
                 fitter, selection, by_name, trial_or_final,
                 lambda sel, found: left_after_removal(fitter, sel, by_name, floor[s.reference], s.reference, say,
                                                       found),
-                floor[s.reference], s.reference, say)
+                floor[s.reference], s.reference, say, keep=[beside[0].effects[0]] if beside else ())
             if gone:
                 final = selection.final
                 _after_drops(result.stepwise, selection, gone, s.reference)
@@ -329,7 +337,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
         flow_parts = {d.effect for d in result.stepwise.dropped if d.given == "discovered" and d.part_of}
         left = [e for e in candidates if e.name not in flow_parts]
         swap = ()
-        if found_fit is not None and _discovered_passes(result.discovered):
+        if found_fit is not None and form_passes(result.discovered):
             swap = in_place_of_terms(fitter, final, result.discovered, found_fit, left, floor[s.reference],
                                      s.reference, say)
         if swap:  # kept when the effect's terms did matter: the whole form passes against the form less them
@@ -341,7 +349,7 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
             else:
                 say(f"in place of its terms: {swap[0]}'s terms add too little to the form less them: the form stays")
                 swap = ()
-        if found_fit is not None and not swap and selection.steps and _discovered_passes(result.discovered):
+        if found_fit is not None and not swap and selection.steps and form_passes(result.discovered):
             result.discovered.refines = own_law_misfit(
                 fitter, final, found_fit, [by_name[st.effects[0]] for st in selection.steps
                                            if not st.is_group and st.effects[0] in by_name],
@@ -462,13 +470,6 @@ def _joint(sel: Selection) -> Joint:
     return Joint(effects=sel.chosen, rollout_mm=final, reduction={h: reduction_of(start[h], final[h]) for h in final})
 
 
-def _discovered_passes(found: Discovered) -> bool:
-    """True when the discovered form lowers what the chosen effects leave by >= MIN_REDUCTION with t >= MIN_T:
-    then a chosen force may be standing in for it (:mod:`.standin`; reporting the form asks for more,
-    :func:`.verdict.discovered_explains`)."""
-    return found.status == "found" and found.reduction >= MIN_REDUCTION and found.t_stat >= MIN_T
-
-
 def _after_drops(sw: Stepwise, selection: Selection, gone: list, key: str) -> None:
     """The result's stepwise search as ``selection`` holds it once ``gone`` (Dropped) are out: the stand-ins and
     the steps that failed without them (:mod:`.standin`, :func:`.stepwise.left_after_removal`), or the steps that
@@ -543,7 +544,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
     if not supports_effects(final.model.host):
         return Discovered(status="unsupported", explanation="discovery needs a parametric reference model"), None, None
     out = _discover_about(final, final, ttr, tte, test_starts, s, fitter, say, train, exclude, form)
-    if form is not None or out[0].status == "too_short" or _discovered_passes(out[0]) or out[0].terms:
+    if form is not None or out[0].status == "too_short" or form_passes(out[0]) or out[0].terms:
         return out  # retried only when the regression chose no term: about the model as fitted it saw no shape
     best = None  # the best refit about another time constant, passing or not
     for about in _other_time_constants(fitter, final, say):
@@ -555,7 +556,7 @@ def _discover(final: Fit, ttr, fit_starts, fit_len, tte, test_starts, s, dt, fit
         about = fitter.evaluate(_without_last(best[2].model))
         again = _discover_about(about, final, ttr, tte, test_starts, s, fitter, say, train, exclude, None)
         best = again if again[2] is not None and again[0].reduction > best[0].reduction else best
-        if _discovered_passes(best[0]):
+        if form_passes(best[0]):
             return best
     return out
 
@@ -627,7 +628,7 @@ def _discover_about(about: Fit, final: Fit, ttr, tte, test_starts, s, fitter, sa
         return Discovered(status="none", explanation="the sparse form chosen on the linearised problem does not "
                           "lower the held-out error once refitted: what is left looks like noise, or a form the "
                           "candidates cannot express", terms=found["terms"]), None, None
-    if linear_t is not None and linear_t < MIN_T and not _discovered_passes(Discovered(**found)):
+    if linear_t is not None and linear_t < MIN_T and not form_passes(Discovered(**found)):
         # the linearised drop was not significant and the refit does not pass either: no form
         return Discovered(status="none", explanation=f"{NO_FORM} (the sparse form chosen on the linearised problem "
                           f"lowers it by {found['reduction']:.0%} once refitted, t = {found['t_stat']:.1f})",

@@ -40,6 +40,16 @@ beside a shear's terms), takes their place when its one law does as well as
 they do; the form without them is refitted, and the search on top of it
 names the effect if it passes the gates there.
 
+A tentative step (:func:`beside_form`): a library effect the search took
+tentatively and dropped, since nothing passed given it, may have needed the
+form outside the library beside it. A wall drag beside a strong shear
+lowered the error by 13 % alone (t = 1.6), and discovery on the bare model
+read the shear, amplified near the wall, as a thrust varying with position
+(55 %); given the wall drag, discovery found the shear itself (76 % of what
+the drag left) and the two left a fifth of the error. The effect is named
+when it and the form found beside it pass the verdict's gates against the
+form found without it, and it still passes them given that form.
+
 The last case (:func:`own_law_misfit`): a chosen effect whose own terms the
 discovered form holds, and which do what the whole form does. A wall drag
 whose decay law is not the library's 1/d (an exponential) leaves a remainder
@@ -54,8 +64,9 @@ from dataclasses import replace
 import numpy as np
 
 from cosim_plugins.diagnose.discover import FLOW_PATTERNS, TERM_TABLE, holds_uniform_part, library_effect, term_force
-from cosim_plugins.diagnose.result import Dropped
-from cosim_plugins.diagnose.verdict import passes
+from cosim_plugins.diagnose.result import DISCOVERED, Dropped
+from cosim_plugins.diagnose.stepwise import LOOKAHEADS, t_text
+from cosim_plugins.diagnose.verdict import MIN_REDUCTION, MIN_T, passes
 
 #: Discovery terms (:data:`.discover.TERM_TABLE`) that express a library force's own form or its look-alike: a uniform
 #: flow's force is nearly a constant (Cd1 w: the angle terms' change is small); a quadratic drag is -c |v| v, and
@@ -67,6 +78,13 @@ OWN_TERMS = {
     "quadratic_drag": tuple(f"f{c}_{k}_{q}{c}" for c in "xyz" for k, q in (("speed", "v"), ("spin", "u"))),
     "wall_drag": tuple(f"f{c}_v{c}_wall{ell}" for c in "xyz" for ell in (3, 10)),
 }
+
+
+def form_passes(found) -> bool:
+    """True when the discovered form (a :class:`~.result.Discovered`) lowers what the chosen effects leave by
+    >= MIN_REDUCTION with t >= MIN_T: then a chosen force may be standing in for it (reporting the form asks for
+    more, :func:`.verdict.discovered_explains`)."""
+    return found.status == "found" and found.reduction >= MIN_REDUCTION and found.t_stat >= MIN_T
 
 
 def holds_own_form(name: str, terms) -> bool:
@@ -131,7 +149,7 @@ def stand_ins(fitter, selection, by_name: dict, discover_on, floor: float | None
 
 
 def drop_stand_ins(fitter, selection, by_name: dict, discover_on, after_removal, floor: float | None, key: str,
-                   say) -> tuple[list, tuple | None]:
+                   say, keep=()) -> tuple[list, tuple | None]:
     """(gone, the discovery on what is left) once the stand-ins are out of ``selection`` (:func:`stand_ins`, in
     place), the form discovered again on what they leave (``discover_on(fit)``, no term excluded;
     ``discover_on(fit, exclude)`` as in :func:`stand_ins`) and the steps left measured again without them but
@@ -149,8 +167,9 @@ def drop_stand_ins(fitter, selection, by_name: dict, discover_on, after_removal,
     A uniform flow dropped as the uniform part of a swirl or shear found without it must be in the form found
     once it is out (:func:`holds_a_flow`). When it is not, that swirl was the flow's own push spread over terms
     near constant on the paths (a wall drag's law misfit beside a flow of 0.6 mm/s: ``fx_z``, ``fy_z`` and
-    their uniform part): the drops are undone and the flow is kept."""
-    kept: set = set()
+    their uniform part): the drops are undone and the flow is kept. The effects named in ``keep`` are not tried
+    (one named beside the form found with it, :func:`beside_form`)."""
+    kept: set = set(keep)
     while True:
         saved = (list(selection.steps), selection.final, len(selection.dropped))
         gone, forms = stand_ins(fitter, selection, by_name, discover_on, floor, key, say, keep=kept)
@@ -181,6 +200,44 @@ def _form_on(final, gone: list, forms: list, discover_on, key: str, say) -> tupl
                 f"less on what is left ({trial[2].error(key):.3f} mm) than the form found there: it is kept")
             again = trial
     return again
+
+
+def beside_form(fitter, selection, by_name: dict, discover_on, bare: tuple, floor: float | None, key: str,
+                say) -> tuple | None:
+    """(a :class:`~.stepwise.Step`, the final model with it (a Fit), the discovery beside it) for an effect the
+    search took tentatively and dropped (``selection.tentative``, at most :data:`~.stepwise.LOOKAHEADS`, those
+    taken on the final model) that earns its place once a form outside the library is discovered beside it (see
+    the module doc), or None.
+
+    For each, discovery runs on what the final model plus it leaves (``discover_on(fit) -> (Discovered, effect
+    file source, Fit or None)``, quietly); it is named when the two pass the verdict's gates against the form
+    found without it (``bare``: that discovery's (Discovered, source, Fit or None); the final model when it
+    found nothing that passes) and it passes them given the form, refitted without it. Its step's drop is that
+    last one (``given`` ends with :data:`~.result.DISCOVERED`). The one whose model with the form errs least
+    wins."""
+    rival = bare[2] if bare[2] is not None and form_passes(bare[0]) else selection.final
+    others = [by_name[n] for n in selection.chosen]
+    best = None
+    for step in [st for st in selection.tentative if st.before is selection.final][:LOOKAHEADS]:
+        name = step.effects[0]
+        say(f"discover: again given {name}, taken tentatively and dropped: the form beside it may be what it "
+            "needed")
+        again = discover_on(step.fit)
+        found, _, with_form = again
+        if with_form is None or not form_passes(found):
+            say(f"  given {name}: no form passes")
+            continue
+        without = fitter.without(with_form, [*others, with_form.model.effects[-1]])
+        over = fitter.entry(by_name[name], with_form, True, rival)
+        given = fitter.entry(by_name[name], with_form, True, without)
+        ok = passes(over, rival.error(key), floor, key) and passes(given, without.error(key), floor, key)
+        say(f"  given {name}, the form ({', '.join(found.terms or ())}): {with_form.error(key):.3f} mm against "
+            f"{rival.error(key):.3f} mm without {name} ({over['reduction']:+.1%}, {t_text(over)}); {name} given "
+            f"the form {given['reduction']:+.1%} ({t_text(given)})" + (": named" if ok else ""))
+        if ok and (best is None or with_form.error(key) < best[2][2].error(key)):
+            best = (replace(step, entry=given, fit=with_form, before=without, alone=step.alone or step.entry,
+                            given=[*selection.chosen, DISCOVERED]), step.fit, again)
+    return best
 
 
 def holds_a_flow(found, with_form) -> bool:

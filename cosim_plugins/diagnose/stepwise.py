@@ -120,6 +120,7 @@ class Selection:
     stop: str  # "noise_floor" | "none_passes" | "max_effects" | "no_candidates"
     dropped: list = field(default_factory=list)  # [{"effect", "reduction", "t_stat"}] by the backward check
     rounds_given: list = field(default_factory=list)  # [[effect, ...] per round]: the model each round was given
+    tentative: list = field(default_factory=list)  # [Step, ...] taken tentatively and dropped, in that order
 
     @property
     def chosen(self) -> list:
@@ -138,6 +139,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
     """
     say = say or (lambda msg: None)
     current, steps, rounds, given, remaining = start, [], [], [], list(candidates)
+    tentative = []  # the steps taken tentatively and dropped (discovery may try them again, see the pipeline)
     by_name = {e.name: e for e in candidates}
     stop = "max_effects"
     pending = None  # a look-ahead: its tentative step's index in steps, its round and what came before it
@@ -170,6 +172,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
                                  entries=entries, fits=fits)
         elif failed and pending is not None:  # nothing passes given the tentative step: it goes
             say(f"{steps[pending.index].effects[0]}, taken tentatively, is dropped: nothing passes given it")
+            tentative.append(steps[pending.index])
             steps, current, remaining = pending.undo(steps)
             round_no = pending.round_no
         if failed:
@@ -203,6 +206,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
                 continue
             partner = steps[-1]
             alone = _partner_alone(fitter, partner, without, pending.before, by_name, floor.get(key), key, say)
+            tentative.append(steps[pending.index])
             steps, current, remaining = pending.undo(steps)
             if alone is not None:
                 pending = None  # the tentative step went, and nothing tentative is left to drop below
@@ -219,8 +223,10 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
             steps, current, remaining = taken
     if pending is not None:  # the search stopped before the look-ahead's round chose: the tentative step goes
         say(f"{steps[pending.index].effects[0]}, taken tentatively, is dropped: the search stopped first")
+        tentative.append(steps[pending.index])
         steps, current, _ = pending.undo(steps)
-    selection = Selection(steps=steps, rounds=rounds, final=current, start=start, stop=stop, rounds_given=given)
+    selection = Selection(steps=steps, rounds=rounds, final=current, start=start, stop=stop, rounds_given=given,
+                          tentative=tentative)
     if len(steps) >= 2:
         _backward(fitter, selection, by_name, floor.get(key), key, say)
     return selection

@@ -293,7 +293,7 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                 + (f"; {min(share, 1.0):.0%} of the excess over the noise floor, {floor:.2f} mm)" if floor is not None
                    else "; no noise floor: the camera noise could not be estimated)"))
         if st.alone is not None and not st.group:
-            parts.append(f"{st.effects[0]} explains part of the error only together with {' and '.join(on)}: "
+            parts.append(f"{st.effects[0]} explains part of the error only together with {given_words(on, ' and ')}: "
                          f"alone it lowers it by {st.alone.reduction:.0%} (t = {st.alone.t_stat:.1f}), not enough, "
                          f"but refitted with it, {drop}. Fitted: {params_text(st.params)}.")
             continue

@@ -309,3 +309,49 @@ def test_a_listed_effects_start_matches_the_force_of_the_terms_it_replaces():
     terms = [by_name[f"f{c}_speed_v{c}"] for c in "xyz"]
     start = matched_start(QUADRATIC_DRAG, tl, terms, [-0.0037] * 3, {"Cd1": 0.2})
     assert start == {"c": pytest.approx(0.0037, rel=1e-6)}
+
+
+@pytest.mark.parametrize("form_alone_mm, named", [(1.0, "wall_drag"), (0.66, None)])
+def test_an_effect_dropped_as_tentative_is_named_beside_the_form_found_with_it(form_alone_mm, named):
+    """Table fitter: a wall drag and a gradient force were taken tentatively and dropped (nothing passed given
+    either). The bare model errs 3.0 mm, the form found on it 1.35 mm. Given the wall drag, discovery finds a form
+    (D1) the two err 0.63 mm with: that passes against the bare form, and the drag, taken out with the form kept
+    (1.0 mm), passes given it: named, its drop measured given the form. When the form alone does as well (0.66 mm)
+    the drag is not named. Given the force, the form (D2) does no better than the bare one."""
+    from types import SimpleNamespace as NS
+
+    from cosim_plugins.diagnose.result import DISCOVERED
+    from cosim_plugins.diagnose.standin import beside_form
+    from cosim_plugins.diagnose.stepwise import Step
+
+    wall, grad = "wall_drag", "gradient_force"
+    errors = {(): 3.0, ("D0",): 1.35, (wall,): 2.64, (wall, "D1"): 0.63, ("D1",): form_alone_mm, (grad,): 2.87,
+              (grad, "D2"): 1.3, ("D2",): 1.32}
+    errors = {frozenset(k): v for k, v in errors.items()}
+    effects = {n: NS(name=n, kind="force") for n in (wall, grad, "D0", "D1", "D2")}
+
+    def fit(names):
+        names = frozenset(names)
+        return NS(names=names, model=NS(effects=[effects[n] for n in sorted(names)]), error=lambda k: errors[names])
+
+    def discover_on(base):
+        form = {frozenset(): "D0", frozenset({wall}): "D1", frozenset({grad}): "D2"}[base.names]
+        with_form = fit(base.names | {form})
+        with_form.model.effects.append(effects[form])  # the discovered form comes last
+        red = 1 - with_form.error(KEY) / base.error(KEY)
+        return NS(status="found", reduction=red, t_stat=20 * red, terms=[f"{form}_terms"]), None, with_form
+
+    bare = fit(())
+    tentative = [Step(effects=[n], entry=_entry(None, fit({n}), True, bare), fit=fit({n}), before=bare)
+                 for n in (wall, grad)]
+    selection = NS(tentative=tentative, final=bare, chosen=[])
+    out = beside_form(_table_fitter(fit), selection, effects, discover_on, discover_on(bare), None, KEY,
+                      lambda m: None)
+    if named is None:
+        assert out is None
+        return
+    step, final, (found, _, with_form) = out
+    assert step.effects == [wall] and step.given == [DISCOVERED] and final.names == {wall}
+    assert found.terms == ["D1_terms"] and with_form.names == {wall, "D1"}
+    assert step.entry["reduction"] == pytest.approx(1 - 0.63 / 1.0) and step.before.names == {"D1"}
+    assert step.alone["reduction"] == pytest.approx(1 - 2.64 / 3.0)  # its drop alone, which did not pass
