@@ -45,8 +45,8 @@ tentatively and dropped, since nothing passed given it, may have needed the
 form outside the library beside it. A wall drag beside a strong shear
 lowered the error by 13 % alone (t = 1.6), and discovery on the bare model
 read the shear, amplified near the wall, as a thrust varying with position
-(55 %); given the wall drag, discovery found the shear itself (76 % of what
-the drag left) and the two left a fifth of the error. The effect is named
+(55 %); given the wall drag, discovery found the shear itself (72 % of what
+the drag left) and the two left a quarter of the error. The effect is named
 when it and the form found beside it pass the verdict's gates against the
 form found without it, and it still passes them given that form.
 
