@@ -304,7 +304,8 @@ ROWS = (
         ("blind_s3", "blind_s2", "blind_s43", "blind_s47", "blind_s49", "blind_s52", "blind_s54", "blind_s56",
          "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
          "blind_s76", "blind_s78", "blind_s81", "blind_s83", "blind_s86", "blind_outside_s93", "blind_none_s95",
-         "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112", "blind_s113", "blind_s115"),
+         "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112", "blind_s113", "blind_s115",
+         "blind_s116"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
@@ -452,7 +453,11 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
     ("blind_s113", "seed 113 (fresh, multi beside the single-effect groups, 2d90968: every open-loop fit with the "
                    "evaluation's two passes)"),
     ("blind_s115", "seed 115 (fresh, multi beside the single-effect groups, 2b445de: the effects left once a "
-                   "stand-in is out measured given the form, drags through a discovered flow)"))
+                   "stand-in is out measured given the form, drags through a discovered flow)"),
+    ("blind_s116", "seed 116 (fresh, multi beside the single-effect groups, 915e9da: discovery given a dropped "
+                   "tentative effect)"),
+    ("blind_lookalike_s117", "seed 117 (fresh, look-alikes only, 915e9da: discovery given a dropped tentative "
+                             "effect)"))
 
 
 def several_effects_table() -> str:
