@@ -139,7 +139,7 @@ def select(fitter, start: Fit, candidates, first: tuple, max_effects: int, floor
     """
     say = say or (lambda msg: None)
     current, steps, rounds, given, remaining = start, [], [], [], list(candidates)
-    tentative = []  # the steps taken tentatively and dropped (discovery may try them again, see the pipeline)
+    tentative = []  # the steps taken tentatively and dropped (tried again beside a form: standin.beside_form)
     by_name = {e.name: e for e in candidates}
     stop = "max_effects"
     pending = None  # a look-ahead: its tentative step's index in steps, its round and what came before it
