@@ -62,6 +62,7 @@ from cosim.contract.errors import UserError
 from cosim_plugins.identify.effect import effect_sources, library_data, restore_effects, water_params
 from cosim_plugins.identify.model import Model
 from cosim_plugins.identify.terms import EffectParam, ForceTerm
+from cosim_plugins.models import kernels
 
 BASE_PARAMS = (  # scales: typical magnitudes for a mm-sized swimmer (tau_v ~ 0.03-0.5 s, 1-5 mm/s per Hz)
     EffectParam("k", 0.1, unit="uN/Hz", scale=0.1),
@@ -98,17 +99,12 @@ def _geometry_t(p, v, u, pb):
 
 def _angle_terms_t(v, u):
     """sin(alpha) (n,) and sin(2 alpha) |v| v_perp (3, n) [mm/s] of :func:`geometry`, component-major."""
-    vn = np.sqrt(_sum3(v * v, 0))
-    wn = np.sqrt(_sum3(u * u, 0))
-    den = vn * wn
-    ok = den > 1e-12
-    cos = np.where(ok, _sum3(u * v, 0) / np.where(ok, den, 1.0), 1.0)
-    np.minimum(np.maximum(cos, -1.0, out=cos), 1.0, out=cos)
-    sin_a = np.sqrt(1.0 - cos * cos)
-    # sin(2a) |v| v_perp = 2 cos (|v| w_hat - cos v): no division by sin(a)
-    c2 = 2.0 * cos * ok
-    lift = (c2 * vn / np.where(wn > 1e-12, wn, 1.0)) * u - (c2 * cos) * v
-    return sin_a, lift
+    return kernels.angle_terms(_floats(v), _floats(u))
+
+
+def _floats(a) -> np.ndarray:
+    """``a`` as a float array (the compiled kernels take float64 arrays only)."""
+    return a if isinstance(a, np.ndarray) and a.dtype == np.float64 else np.asarray(a, dtype=float)
 
 
 def hydrodynamic_force(v: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
@@ -119,25 +115,21 @@ def hydrodynamic_force(v: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray
 
 def _hydrodynamic_force_t(v, u, params: dict):
     """:func:`hydrodynamic_force` on component-major arrays, v, u (3, n) -> (3, n)."""
-    sin_a, lift = _angle_terms_t(v, u)
-    return params.get("Cl0", 0.0) * lift - (params.get("Cd0", 0.0) * sin_a + params.get("Cd1", 0.0)) * v
+    return kernels.hydrodynamic(_floats(v), _floats(u), float(params.get("Cd0", 0.0)),
+                                float(params.get("Cd1", 0.0)), float(params.get("Cl0", 0.0)))
 
 
 def flow_force(v: np.ndarray, w: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
     """(n, 3) [uN] H(v - w) - H(v): the change of :func:`hydrodynamic_force` at velocity v (n, 3) [mm/s] and
-    command u (n, 3) [Hz] when the water moves at w ((3,) or (n, 3) [mm/s]). Both in one call on the rows
-    stacked, component-major: the rollouts step a few hundred rows, where numpy's per-call cost, not the
-    arithmetic, is what a second call would add."""
-    n, vt, ut = len(v), v.T, u.T
-    both = np.concatenate([vt - np.asarray(w, dtype=float).T.reshape(3, -1), vt], axis=1)
-    f = _hydrodynamic_force_t(both, np.concatenate([ut, ut], axis=1), params)
-    return (f[:, :n] - f[:, n:]).T
+    command u (n, 3) [Hz] when the water moves at w ((3,) or (n, 3) [mm/s])."""
+    w = np.asarray(w, dtype=float)
+    return kernels.flow_change(_floats(v).T, w.reshape(-1, 3).T, _floats(u).T, float(params.get("Cd0", 0.0)),
+                               float(params.get("Cd1", 0.0)), float(params.get("Cl0", 0.0))).T
 
 
 def _centring_t(p, pb):
     """sin(pi |p| / |P_b|) c_hat (3, n) of :func:`geometry`, component-major."""
-    pn = np.sqrt(_sum3(p * p, 0))
-    return p * (-np.sin((np.pi / pb) * pn) / np.where(pn > 1e-12, pn, 1.0))
+    return kernels.centring(_floats(p), float(pb))
 
 
 def forces(p, v, u, params: dict, terms=(), pb_norm_mm: float = 70 * math.sqrt(3)):
@@ -337,15 +329,16 @@ class PhysicalModel(Model):
         drive = th[0] * f
         drive[2] += th[4]
         cent = _centring_t(p, self._pb)
+        packed = groups.packed if groups is not None else _packed(th, x.shape[1])
         calls = self._term_calls(th, groups) if self.terms else ()
         # a velocity term's force at rest, (3, n) or None: the same for both passes
         at_rest = [call(term, p, np.zeros_like(v), f) if moving else None
                    for term, moving, call in zip(self.terms, self._velocity_terms(), calls)]
         if not self._exact:  # the paper's scheme: the geometry at the last step's velocity
-            return self._pass_t(x, u, f, drive, cent, v, h, th, calls, at_rest)
+            return self._pass_t(x, u, f, drive, cent, v, h, packed, calls, at_rest)
         # first pass: the geometry at a prediction of the step's mean velocity that knows only the thrust and Cd1
-        out = self._pass_t(x, u, f, drive, cent, decay * v + (s * h * f1) * drive, h, th, calls, at_rest)
-        return self._pass_t(x, u, f, drive, cent, out[3:], h, th, calls, at_rest)
+        out = self._pass_t(x, u, f, drive, cent, decay * v + (s * h * f1) * drive, h, packed, calls, at_rest)
+        return self._pass_t(x, u, f, drive, cent, out[3:], h, packed, calls, at_rest)
 
     def _term_calls(self, th, groups) -> list:
         """Per extra term, its force on (p, v, u) (3, n) with this step's parameters (a group's, under set_groups)."""
@@ -355,37 +348,23 @@ class PhysicalModel(Model):
         named = dict(zip(self._param_names(), self._theta if self._columns is not None else th))
         return [_one_call(prm) for prm in _terms_params(self.terms, named)]
 
-    def _pass_t(self, x, u, f, drive, cent, v_geo, h, th, calls, at_rest):
+    def _pass_t(self, x, u, f, drive, cent, v_geo, h, packed, calls, at_rest):
         """:meth:`_step_t`'s one pass: the drive and the centring force (3, n) held, the angle terms and the extra
         terms taken at ``v_geo`` (3, n) [mm/s] (``at_rest``: each velocity term's force at zero velocity, else
-        None); the step's new state (6, n)."""
-        p, v = x[:3], x[3:]
-        s = self._scale
-        sin_a, lift = _angle_terms_t(v_geo, u)
-        a = drive.copy()  # the forces held over the step, uN per mg
-        a += th[3] * lift
-        a += th[5] * cent
-        drag = th[1] * sin_a + th[2]
+        None; ``packed``: the base parameters (6, 1 or n), :func:`_packed`); the step's new state (6, n)
+        (:func:`~cosim_plugins.models.kernels.exp_pass`)."""
+        forces = slowing = None
         if self.terms:
-            slowing = 0.0
+            p, moving = x[:3], False
             for term, rest, call in zip(self.terms, at_rest, calls):
                 ft = call(term, p, v_geo, f)
-                a += ft
+                forces = ft if forces is None else forces + ft
                 if rest is not None:  # the part of its force that grows with the velocity, along it
-                    slowing = slowing - _sum3((ft - rest) * v_geo, 0)
-            # a drag among the terms joins the exact decay (a stiff quadratic drag cannot blow up): rate
-            # lambda_e = -(F(v) - F(0)) . v / |v|^2 >= 0, and lambda_e v is given back to the held forces
-            extra = np.maximum(slowing, 0.0) / np.maximum(_sum3(v_geo * v_geo, 0), 1e-12)
-            drag += extra
-            a += extra * v_geo
-        z = (s * h) * drag
-        z += 1e-300  # exp(-z) = 1 + em and phi1(z) = -em / z, with em = expm1(-z) (z != 0)
-        em = np.expm1(-z)
-        out = np.empty_like(x)
-        np.subtract((1.0 + em) * v, ((s * h) * em / z) * a, out=out[3:])
-        np.multiply(out[3:], h, out=out[:3])
-        out[:3] += p
-        return out
+                    drop = _sum3((ft - rest) * v_geo, 0)
+                    slowing, moving = (-drop if slowing is None else slowing - drop), True
+            forces = _floats(forces)
+            slowing = _floats(slowing) if moving else None
+        return kernels.exp_pass(x, u, drive, cent, _floats(v_geo), packed, self._scale * h, h, forces, slowing)
 
     # ------------------------------------------------------------ fitting
 
@@ -713,6 +692,7 @@ class _Groups:
         per_group = [_terms_params(terms, nm) for nm in named]
         self.terms = [_TermGroups([prms[i] for prms in per_group], width) for i in range(len(terms))]
         self._hold: dict = {}
+        self.packed = _packed(self.th, self.columns)  # the six base parameters for the compiled pass
 
     def _per_column(self, values: np.ndarray):
         return values[0] if np.all(values == values[0]) else np.repeat(values, self.width)
@@ -723,6 +703,16 @@ class _Groups:
             factors = np.array([_hold_factors(s, h, cd1) for cd1 in self.thetas[:, 2]])
             self._hold[h] = tuple(self._per_column(factors[:, k]) for k in range(3))
         return self._hold[h]
+
+
+def _packed(th, n: int) -> np.ndarray:
+    """The six base parameters ``th[:6]`` (scalars, or (n,) per column) as one (6, 1) or (6, n) float array."""
+    if all(np.ndim(t) == 0 for t in th[:6]):
+        return np.array([float(t) for t in th[:6]]).reshape(6, 1)
+    out = np.empty((6, n))
+    for k in range(6):
+        out[k] = th[k]
+    return out
 
 
 def _step_scalar(x, u, h, th, s, pb):

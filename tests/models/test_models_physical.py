@@ -161,6 +161,29 @@ def test_custom_term_and_unregistered_term_on_load(tmp_path):
         model.set_params({"nope": 1.0})
 
 
+def test_the_angle_terms_follow_their_definition():
+    """geometry (compiled, column by column) against Eq. 2-6 written out: alpha the angle between v and omega,
+    v_perp the unit vector normal to v in their plane towards omega, c_hat = -p / |p|."""
+    from cosim_plugins.models.physical import geometry
+
+    x, u = _random_states(200, seed=4)
+    p, v = x[:, :3], x[:, 3:]
+    sin_a, lift, cent = geometry(p, v, u, 70 * math.sqrt(3))
+    vh = v / np.linalg.norm(v, axis=1, keepdims=True)
+    wh = u / np.linalg.norm(u, axis=1, keepdims=True)
+    alpha = np.arccos(np.clip(np.sum(vh * wh, axis=1), -1, 1))
+    normal = wh - np.sum(vh * wh, axis=1, keepdims=True) * vh
+    v_perp = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+    np.testing.assert_allclose(sin_a, np.sin(alpha), atol=1e-12)
+    np.testing.assert_allclose(lift, (np.sin(2 * alpha) * np.linalg.norm(v, axis=1))[:, None] * v_perp,
+                               rtol=1e-9, atol=1e-9)
+    pn = np.linalg.norm(p, axis=1, keepdims=True)
+    np.testing.assert_allclose(cent, np.sin(np.pi * pn / (70 * math.sqrt(3))) * (-p / pn), atol=1e-12)
+    # without a command or a velocity there is no angle: no lift, no angle drag
+    zero = geometry(p[:2], np.array([[0.0, 0, 0], [1, 2, 3]]), np.array([[1.0, 0, 0], [0, 0, 0]]), 120.0)
+    assert np.all(zero[0] == 0) and np.all(zero[1] == 0)
+
+
 def test_fast_single_step():
     import time
 
