@@ -172,8 +172,26 @@ def _diagnose(logs) -> tuple[dict, object]:
         # the chosen effects' joint drop: the discovery's reduction is measured on what they leave
         "chosen_reduction": ((diag.get("stepwise") or {}).get("joint") or {}).get("reduction", {}).get(key, 0.0),
         "drift_flagged": list((diag.get("drift") or {}).get("flagged") or []),
+        "named_by": _named_by(diag, verdict.get("effects") or []),
     }
     return fields, d
+
+
+def _named_by(diag: dict, named: list) -> dict:
+    """{named effect: the path of the search that named it}: "stepwise" (its rounds), "given_form" (weighed
+    given a discovered form: an effect dropped as tentative tried again beside it, or a group named on top of
+    it) or "on_top" (the search again on top of the discovered form); "other" for none of these."""
+    from cosim_plugins.diagnose.result import DISCOVERED
+
+    sw = diag.get("stepwise") or {}
+    paths = {}
+    for st in (sw.get("given_discovered") or {}).get("steps") or []:
+        for e in st["effects"]:
+            paths[e] = "on_top"
+    for st in sw.get("steps") or []:
+        for e in st["effects"]:
+            paths[e] = "given_form" if DISCOVERED in (st.get("given") or []) else "stepwise"
+    return {e: paths.get(e, "other") for e in named}
 
 
 def _true_refit(logs, forms: list) -> tuple[float, dict]:
@@ -427,6 +445,9 @@ def summarise(records: list[dict]) -> dict:
                     "time_varying_named": sum(1 for r in out if r["true_reduction"] is None and r["named"])},
         "multi": {"cases": len(multi), "all_named": frac(multi, all_named),
                   "extra_named": sum(1 for r in multi if extra_named(r)), "by_kind": by_kind,
+                  # cases where an effect was named only given a discovered form (absent in older records)
+                  "named_given_form": sum(1 for r in multi if {"given_form", "on_top"} & set(
+                      (r.get("named_by") or {}).values())),
                   "detectable": sum(1 for r in multi if multi_detectable(r)),
                   "all_named_detectable": frac([r for r in multi if multi_detectable(r)], all_named),
                   "detectable_jointly": sum(1 for r in multi if jointly_detectable(r)),

@@ -36,6 +36,24 @@ def test_jointly_detectable_cases_are_scored_apart():
     assert m["all_named"] == pytest.approx(1 / 3, abs=1e-3) and m["all_named_detectable_jointly"] == pytest.approx(0.5)
 
 
+def test_each_named_effect_records_the_path_that_named_it():
+    """A flow chosen in the rounds, a wall drag weighed given the discovered form, a lag chosen on top of it: the
+    record says which, and the case counts among those an effect was named only given a form."""
+    diag = {"stepwise": {
+        "steps": [{"effects": ["background_flow"], "given": []},
+                  {"effects": ["wall_drag"], "given": ["background_flow", "discovered"]}],
+        "given_discovered": {"steps": [{"effects": ["actuation_lag", "heading_lag"], "given": ["discovered"]}]}}}
+    named = ["background_flow", "wall_drag", "actuation_lag", "quadratic_drag"]
+    assert blind._named_by(diag, named) == {"background_flow": "stepwise", "wall_drag": "given_form",
+                                            "actuation_lag": "on_top", "quadratic_drag": "other"}
+    base = {"group": "multi", "effects": ["wall_drag", "background_flow"], "laws": ["", ""],
+            "hidden_library": ["wall_drag", "background_flow"], "lookalikes": [], "seconds": 1.0, "after": None,
+            "named_effects": ["background_flow", "wall_drag"], "true_reductions": {}, "draw": {}}
+    plain = {**base, "named_by": {"background_flow": "stepwise", "wall_drag": "stepwise"}}
+    beside = {**base, "named_by": {"background_flow": "stepwise", "wall_drag": "given_form"}}
+    assert blind.summarise([plain, beside, base])["multi"]["named_given_form"] == 1
+
+
 def test_a_discovery_on_top_of_a_chosen_effect_is_judged_with_it():
     """A water turning about a vertical axis: a background flow takes 80 % of the error, the discovered form 40 %
     of what it leaves (88 % together, against the true form's 90 %). Alone, 40 % would be under half of 90 %."""
