@@ -353,18 +353,17 @@ class PhysicalModel(Model):
         terms taken at ``v_geo`` (3, n) [mm/s] (``at_rest``: each velocity term's force at zero velocity, else
         None; ``packed``: the base parameters (6, 1 or n), :func:`_packed`); the step's new state (6, n)
         (:func:`~cosim_plugins.models.kernels.exp_pass`)."""
-        forces = slowing = None
+        term_forces = slowing = None  # the terms' forces (3, n) [uN], their drag power (n,) [uN mm/s]
         if self.terms:
-            p, moving = x[:3], False
             for term, rest, call in zip(self.terms, at_rest, calls):
-                ft = call(term, p, v_geo, f)
-                forces = ft if forces is None else forces + ft
+                ft = call(term, x[:3], v_geo, f)
+                term_forces = ft if term_forces is None else term_forces + ft
                 if rest is not None:  # the part of its force that grows with the velocity, along it
                     drop = _sum3((ft - rest) * v_geo, 0)
-                    slowing, moving = (-drop if slowing is None else slowing - drop), True
-            forces = _floats(forces)
-            slowing = _floats(slowing) if moving else None
-        return kernels.exp_pass(x, u, drive, cent, _floats(v_geo), packed, self._scale * h, h, forces, slowing)
+                    slowing = -drop if slowing is None else slowing - drop
+            term_forces = _floats(term_forces)
+            slowing = None if slowing is None else _floats(slowing)
+        return kernels.exp_pass(x, u, drive, cent, _floats(v_geo), packed, self._scale * h, h, term_forces, slowing)
 
     # ------------------------------------------------------------ fitting
 
