@@ -284,7 +284,8 @@ ROWS = (
         "beforehand; each pair's minimum over 5 passes)", "`pair_ms` median <= 2 ms", ("camera",), _camera),
     Row("diagnose.py", "`cosim diagnose` on five 3,000-row logs",
         "<= 20 s (round 3); <= 60 s with the stepwise search (issue 33)",
-        ("diagnose_jobs2_aaa7302", "diagnose_jobs2_21cc104", "diagnose_jobs2_79af89a", "diagnose_jobs2_0940a22", "diagnose_jobs2_2bb3b17",
+        ("diagnose_jobs2_aaa7302", "diagnose_jobs2_21cc104", "diagnose_jobs2_79af89a", "diagnose_jobs2_0940a22",
+         "diagnose_jobs2_2bb3b17",
          "diagnose_jobs2_775c2b1", "diagnose_jobs2_222c636", "diagnose_jobs2_fa604e4", "diagnose_jobs2_010912a",
          "diagnose_jobs2", "diagnose_jobs1"), _diagnose),
     Row("archive.py", "`cosim diagnose` on 5, 20 and 120 logs of 60 s from the blind bench's simulator "
