@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from cosim_plugins.identify.joint import targets
+from cosim_plugins.identify.joint import capped, targets
 
 H_S = 1e-4  # step of the one-step difference that gives the acceleration [s]
 
@@ -125,7 +125,7 @@ class EquationError:
             th = theta0.copy()
             th[free] = z
             with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
-                return np.nan_to_num(self.residual(th), nan=1e6, posinf=1e6, neginf=-1e6)
+                return capped(self.residual(th))
 
         out = least_squares(res, theta0[free], bounds=(lo[free], hi[free]), x_scale=jm.scales()[free],
                             method="trf", max_nfev=max_nfev, ftol=1e-8, xtol=1e-8)

@@ -54,6 +54,9 @@ SCREEN_EVERY = 8  # the screening windows: every 8th training window
 EE_WINDOWS = 200  # training windows the equation-error starts use
 EE_NFEV = 15  # evaluations of each equation-error fit
 DIVERGED_MM = 1000.0  # the error of a window whose rollout diverged (larger than any tank) [mm]
+#: The largest residual [mm] a fit's least squares sees: a trial point's NaN, inf or anything larger becomes it
+#: (a rollout that ran off to 1e200 mm is finite, but its squares overflow and the solver's SVD then fails)
+RESIDUAL_CAP_MM = 1e6
 TRADEOFF_CORR = 0.95  # |correlation| of two estimates beyond which the data cannot tell them apart
 # the initial-state solve's ridge [mm^2 per mm^2, mm^2 per (mm/s)^2]: it keeps the correction of the guess finite
 # where the windows do not see a direction. The velocity's is worth about one measurement row per 10 mm/s: a
@@ -70,6 +73,11 @@ MAX_BATCH_COLUMNS = 4096  # batch columns a rollout steps at once (wider ones mi
 # two disagree (a baseline 25 % above the truth's held-out error on logs with nothing hidden, which any effect's
 # refit then "explained")
 OPEN_LOOP_PASSES = 2
+
+
+def capped(r: np.ndarray) -> np.ndarray:
+    """Residuals [mm] with NaN, inf and magnitudes above :data:`RESIDUAL_CAP_MM` set to +-RESIDUAL_CAP_MM."""
+    return np.clip(np.nan_to_num(r, nan=RESIDUAL_CAP_MM), -RESIDUAL_CAP_MM, RESIDUAL_CAP_MM)
 
 
 @dataclass(frozen=True)
@@ -636,7 +644,7 @@ def fit_joint(jm: JointModel, tl, starts: np.ndarray, length: int, max_nfev: int
             with np.errstate(all="ignore"):  # a trial point may diverge: its cost is then huge, not an error
                 pred, solve = jm.projected(tl, rows, length, fit_rows, u_eff=fixed_u, held=held)
                 r = np.where(use[..., None], pred - target, 0.0)
-            return np.nan_to_num(r.reshape(-1), nan=1e6, posinf=1e6, neginf=-1e6), solve
+            return capped(r.reshape(-1)), solve
 
         return HeldJacobian(jm, residual, counter), use
 

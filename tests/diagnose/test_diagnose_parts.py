@@ -284,3 +284,26 @@ def test_discovery_retries_only_about_time_constants_where_the_model_does_not_ru
     assert all("runs off" in line for line in said) == (tried == 0)
     taus = [velocity_time_constant(f.model) for f in moved]
     assert taus == pytest.approx([0.03, 0.1, 0.3, 1.0][:tried], rel=1e-6)
+
+
+def test_a_fit_whose_trial_points_run_off_to_huge_finite_positions_ends_where_they_do_not(synthetic, monkeypatch):
+    """Rollouts that run off to 1e200 mm are finite, but their squares overflow: the fit's least squares sees
+    them capped at 1e6 mm (a diagnosis's refit of a discovered form beside a flow failed in its SVD on one)
+    and ends outside the region where they occur, with a finite cost."""
+    from cosim_plugins.identify.joint import fit_joint
+
+    ds, _ = synthetic
+    tl = Timeline.from_dataset(ds)
+    jm = JointModel(lookup("model", "physical").from_params({**syn.TRUE_PARAMS, "k": 0.9 * syn.TRUE_PARAMS["k"]}))
+    cd0 = jm.prm["Cd0"]
+    real = JointModel.projected
+
+    def projected(self, *args, **kwargs):  # any Cd0 above the start's runs off (its Jacobian column too)
+        pred, solve = real(self, *args, **kwargs)
+        return (pred + 1e200 if self.prm["Cd0"] > cd0 else pred), solve
+
+    monkeypatch.setattr(JointModel, "projected", projected)
+    fit = fit_joint(jm, tl, tl.window_starts(10, 0.6, rows=11)[::4], 25, max_nfev=15)
+    assert np.isfinite(fit.rms_mm) and fit.rms_mm < 1.0
+    assert jm.prm["Cd0"] <= cd0
+    assert fit.rms_mm < fit.rms_start_mm  # the thrust gain still went to where the logs put it
