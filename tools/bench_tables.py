@@ -284,8 +284,8 @@ ROWS = (
         "beforehand; each pair's minimum over 5 passes)", "`pair_ms` median <= 2 ms", ("camera",), _camera),
     Row("diagnose.py", "`cosim diagnose` on five 3,000-row logs",
         "<= 20 s (round 3); <= 60 s with the stepwise search (issue 33)",
-        ("diagnose_jobs2_aaa7302", "diagnose_jobs2_21cc104", "diagnose_jobs2_79af89a", "diagnose_jobs2_0940a22",
-         "diagnose_jobs2_2bb3b17",
+        ("diagnose_jobs2_578846c", "diagnose_jobs2_aaa7302", "diagnose_jobs2_21cc104", "diagnose_jobs2_79af89a",
+         "diagnose_jobs2_0940a22", "diagnose_jobs2_2bb3b17",
          "diagnose_jobs2_775c2b1", "diagnose_jobs2_222c636", "diagnose_jobs2_fa604e4", "diagnose_jobs2_010912a",
          "diagnose_jobs2", "diagnose_jobs1"), _diagnose),
     Row("archive.py", "`cosim diagnose` on 5, 20 and 120 logs of 60 s from the blind bench's simulator "
@@ -460,7 +460,8 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
     ("blind_lookalike_s117", "seed 117 (fresh, look-alikes only, 915e9da: discovery given a dropped tentative "
                              "effect)"),
     ("blind_s118", "seed 118 (fresh, multi beside the single-effect groups, 4acc1e7: the compiled kernels; one "
-                   "case again on c325875, the residuals capped)"))
+                   "case again on c325875, the residuals capped)"),
+    ("blind_lookalike_s119", "seed 119 (fresh, look-alikes only, 578846c: the residuals capped)"))
 
 
 def several_effects_table() -> str:
