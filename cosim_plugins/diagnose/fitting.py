@@ -77,13 +77,10 @@ class Fitter:
         # the fits with the most starts first, so the processes end together (a step-out's sixteen starts,
         # begun last, ran on alone); the results in the given order
         order = sorted(range(len(effects)), key=lambda i: -self._starts(effects[i]))
-        done = fork_map(lambda k: self.with_effects(before, [e for e in [effects[order[k]]] if e is not None],
+        done = fork_map(lambda k: self.with_effects(before, [effects[order[k]]] if effects[order[k]] else [],
                                                     quick=quick),
                         len(effects), jobs, "quick fits" if quick else "candidate fits")
-        out = [None] * len(effects)
-        for k, i in enumerate(order):
-            out[i] = done[k]
-        return out
+        return [done[order.index(i)] for i in range(len(effects))]
 
     def _starts(self, effect) -> int:
         """How many starts a fit with ``effect`` added refines (None: none added), what its time grows with."""

@@ -33,6 +33,13 @@ def _angles(vx, vy, vz, ux, uy, uz):
 
 
 @njit(cache=True)
+def _drag_lift(s, a, b, uk, vk, cd0, cd1, cl0):
+    """One component [uN] of -(Cd0 sin(alpha) + Cd1) v + Cl0 sin(2 alpha) |v| v_perp, from :func:`_angles`'
+    (s, a, b) and that component of u [Hz] and v [mm/s]."""
+    return cl0 * (a * uk - b * vk) - (cd0 * s + cd1) * vk
+
+
+@njit(cache=True)
 def angle_terms(v, u):
     """(sin(alpha) (n,), sin(2 alpha) |v| v_perp (3, n) [mm/s]) at velocities v and commands u (3, n)."""
     n = v.shape[1]
@@ -65,9 +72,8 @@ def hydrodynamic(v, u, cd0, cd1, cl0):
     out = np.empty((3, n))
     for i in range(n):
         s, a, b = _angles(v[0, i], v[1, i], v[2, i], u[0, i], u[1, i], u[2, i])
-        drag = cd0 * s + cd1
         for k in range(3):
-            out[k, i] = cl0 * (a * u[k, i] - b * v[k, i]) - drag * v[k, i]
+            out[k, i] = _drag_lift(s, a, b, u[k, i], v[k, i], cd0, cd1, cl0)
     return out
 
 
@@ -85,10 +91,9 @@ def flow_change(v, w, u, cd0, cd1, cl0):
         ux, uy, uz = u[0, i], u[1, i], u[2, i]
         s1, a1, b1 = _angles(r[0], r[1], r[2], ux, uy, uz)
         s0, a0, b0 = _angles(v[0, i], v[1, i], v[2, i], ux, uy, uz)
-        d1, d0 = cd0 * s1 + cd1, cd0 * s0 + cd1
         for k in range(3):
-            out[k, i] = ((cl0 * (a1 * u[k, i] - b1 * r[k]) - d1 * r[k])
-                         - (cl0 * (a0 * u[k, i] - b0 * v[k, i]) - d0 * v[k, i]))
+            out[k, i] = (_drag_lift(s1, a1, b1, u[k, i], r[k], cd0, cd1, cl0)
+                         - _drag_lift(s0, a0, b0, u[k, i], v[k, i], cd0, cd1, cl0))
     return out
 
 

@@ -84,22 +84,11 @@ def geometry(p, v, u, pb_norm_mm: float):
         lift: (n, 3) sin(2 alpha) |v| v_perp [mm/s],
         cent: (n, 3) sin(pi |p| / |P_b|) c_hat [-].
     """
-    sin_a, lift, cent = _geometry_t(p.T, v.T, u.T, pb_norm_mm)
-    return sin_a, lift.T, cent.T
+    sin_a, lift = kernels.angle_terms(_floats(v).T, _floats(u).T)
+    return sin_a, lift.T, _centring_t(_floats(p).T, pb_norm_mm).T
 
 
 _sum3 = np.add.reduce  # _sum3(a * b, 0): the component sums of (3, n) arrays, a[0] b[0] + a[1] b[1] + a[2] b[2]
-
-
-def _geometry_t(p, v, u, pb):
-    """:func:`geometry` on component-major arrays (3, n) (faster: contiguous rows; few numpy calls, since the
-    rollouts step a few hundred columns at a time)."""
-    return (*_angle_terms_t(v, u), _centring_t(p, pb))
-
-
-def _angle_terms_t(v, u):
-    """sin(alpha) (n,) and sin(2 alpha) |v| v_perp (3, n) [mm/s] of :func:`geometry`, component-major."""
-    return kernels.angle_terms(_floats(v), _floats(u))
 
 
 def _floats(a) -> np.ndarray:
@@ -110,13 +99,8 @@ def _floats(a) -> np.ndarray:
 def hydrodynamic_force(v: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
     """(n, 3) [uN] drag and lift of Eq. 2-5 at velocity v (n, 3) [mm/s] through the water, command u (n, 3) [Hz]:
     -(Cd0 sin(alpha) + Cd1) v + Cl0 sin(2 alpha) |v| v_perp (``params``: Cd0, Cd1, Cl0; a missing one is 0)."""
-    return _hydrodynamic_force_t(v.T, u.T, params).T
-
-
-def _hydrodynamic_force_t(v, u, params: dict):
-    """:func:`hydrodynamic_force` on component-major arrays, v, u (3, n) -> (3, n)."""
-    return kernels.hydrodynamic(_floats(v), _floats(u), float(params.get("Cd0", 0.0)),
-                                float(params.get("Cd1", 0.0)), float(params.get("Cl0", 0.0)))
+    return kernels.hydrodynamic(_floats(v).T, _floats(u).T, float(params.get("Cd0", 0.0)),
+                                float(params.get("Cd1", 0.0)), float(params.get("Cl0", 0.0))).T
 
 
 def flow_force(v: np.ndarray, w: np.ndarray, u: np.ndarray, params: dict) -> np.ndarray:
@@ -705,9 +689,10 @@ class _Groups:
 
 
 def _packed(th, n: int) -> np.ndarray:
-    """The six base parameters ``th[:6]`` (scalars, or (n,) per column) as one (6, 1) or (6, n) float array."""
-    if all(np.ndim(t) == 0 for t in th[:6]):
-        return np.array([float(t) for t in th[:6]]).reshape(6, 1)
+    """The six base parameters ``th[:6]`` for the compiled pass: a (6, 1) view of the model's own parameter
+    vector, else (6, n) per column (a list of scalars and (n,) arrays: set_columns, set_groups)."""
+    if isinstance(th, np.ndarray):
+        return th[:6].reshape(6, 1)
     out = np.empty((6, n))
     for k in range(6):
         out[k] = th[k]
