@@ -53,7 +53,7 @@ from dataclasses import dataclass, field, replace
 
 from cosim_plugins.diagnose.lookalike import FAMILIES, evidence_of, group_of
 from cosim_plugins.diagnose.result import DISCOVERED
-from cosim_plugins.diagnose.verdict import AT_FLOOR, MIN_REDUCTION, MIN_T, passes
+from cosim_plugins.diagnose.verdict import AT_FLOOR, MIN_REDUCTION, MIN_T, fails_by, passes
 from cosim_plugins.diagnose.wording import given_words
 
 MAX_EFFECTS = 3  # default of --max-effects
@@ -467,8 +467,7 @@ def _drop_weakest(sel: Selection, trials: list, floor: float | None, key: str, s
     if passes(entry, without.error(key), floor, key):
         return False
     step = sel.steps.pop(i)
-    say(f"backward: {step.effects[0]} dropped (it lowers the error by only {reduction:+.1%}, t = "
-        f"{entry['t_stat']:.1f}, once the others are in)")
+    say(f"backward: {step.effects[0]} dropped once the others are in ({fails_by(reduction, entry['t_stat'])})")
     sel.dropped.append({"effect": step.effects[0], "reduction": reduction, "t_stat": entry["t_stat"]})
     sel.final = without
     return True

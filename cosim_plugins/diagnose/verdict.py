@@ -144,6 +144,16 @@ def passes(entry: dict, err_before: float | None, floor: float | None, key: str)
             and explained_share(err_before, left, floor) >= MIN_EXPLAINED)
 
 
+def fails_by(reduction: float, t_stat: float) -> str:
+    """Why a drop (share of the error, paired t) earns no name, in words: too small, or not significant (a
+    drop that passes both fails on its share of the excess over the noise floor)."""
+    if reduction < MIN_REDUCTION:
+        return f"it lowers the error by only {reduction:.0%}, t = {t_stat:.1f}"
+    if t_stat < MIN_T:
+        return f"its drop of {reduction:.0%} is not significant: t = {t_stat:.1f}"
+    return f"its drop of {reduction:.0%} (t = {t_stat:.1f}) is a small share of the excess over the noise floor"
+
+
 def verdict(result: DiagnosisResult, key: str) -> Verdict:
     """The verdict of a diagnosis result (see :mod:`.pipeline`): the first effect named or None, every effect
     named in the order chosen, the look-alike groups the logs cannot tell apart, the status ("explained",
@@ -205,8 +215,7 @@ def _verdict(result: DiagnosisResult, key: str) -> Verdict:
             names = " and ".join(d.effect for d in on_top)
             text = (f"{names}, chosen first, {'was' if len(on_top) == 1 else 'were'} dropped once the discovered "
                     "form and the effects named on top of it were in ("
-                    + "; ".join(f"{d.effect} then lowers the error by only {d.reduction:+.1%}, t = {d.t_stat:.1f}"
-                                for d in on_top) + "). ")
+                    + "; ".join(f"{d.effect}: {fails_by(d.reduction, d.t_stat)}" for d in on_top) + "). ")
             what, left = f"what {names} left", found.rollout_mm[key] / (1.0 - found.reduction)
         # a flow term's name: w<axes>_<feature>
         terms = "force terms and a flow of the water" if any(n.startswith("w") for n in found.terms or ()) \
@@ -331,7 +340,7 @@ def _steps_text(result: DiagnosisResult, key: str) -> str:
                      + {"drift": "the drift between the logs was allowed for",
                         "on_top": "the discovered form and the effects named on top of it were in"}.get(
                          d.given, "the others were in")
-                     + f" (it then lowers the error by only {d.reduction:.0%}, t = {d.t_stat:.1f}).")
+                     + f" ({fails_by(d.reduction, d.t_stat)}).")
     return " ".join(parts)
 
 

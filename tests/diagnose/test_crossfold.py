@@ -89,7 +89,9 @@ def test_a_fold_too_short_is_left_out():
 @pytest.mark.parametrize("entry,asked", [
     ({"identifiable": True, "reduction": 0.36, "t_stat": 2.1}, True),
     ({"identifiable": True, "reduction": 0.36, "t_stat": 3.4}, False),  # passes alone
-    ({"identifiable": True, "reduction": 0.36, "t_stat": 1.2}, False),  # too weak for three folds to lift
+    ({"identifiable": True, "reduction": 0.15, "t_stat": 1.2}, False),  # too weak for three folds to lift
+    ({"identifiable": True, "reduction": 0.43, "t_stat": 1.6}, True),  # a large drop in few blocks (a step-out)
+    ({"identifiable": True, "reduction": 0.43, "t_stat": 0.8}, False),
     ({"identifiable": True, "reduction": 0.05, "t_stat": 2.5}, False),  # a drop too small to name
     ({"identifiable": False, "reduction": 0.36, "t_stat": 2.5}, False),
 ])
