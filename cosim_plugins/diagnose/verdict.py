@@ -148,7 +148,7 @@ def fails_by(reduction: float, t_stat: float) -> str:
     """Why a drop (share of the error, paired t) earns no name, in words: too small, or not significant (a
     drop that passes both fails on its share of the excess over the noise floor)."""
     if reduction < MIN_REDUCTION:
-        return f"it lowers the error by only {reduction:.0%}, t = {t_stat:.1f}"
+        return f"it lowers the error by only {reduction:.1%}, t = {t_stat:.1f}"  # 9.8 %, not "only 10 %"
     if t_stat < MIN_T:
         return f"its drop of {reduction:.0%} is not significant: t = {t_stat:.1f}"
     return f"its drop of {reduction:.0%} (t = {t_stat:.1f}) is a small share of the excess over the noise floor"
