@@ -463,7 +463,9 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                    "case again on c325875, the residuals capped)"),
     ("blind_lookalike_s119", "seed 119 (fresh, look-alikes only, 578846c: the residuals capped)"),
     ("blind_s120", "seed 120 (fresh, multi beside the single-effect groups, d81d55b: a large drop asked on every "
-                   "fold from t = 1)"))
+                   "fold from t = 1)"),
+    ("blind_lookalike_s121", "seed 121 (fresh, look-alikes only, d81d55b: a large drop asked on every fold from "
+                             "t = 1)"))
 
 
 def several_effects_table() -> str:

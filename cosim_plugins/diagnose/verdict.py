@@ -144,11 +144,17 @@ def passes(entry: dict, err_before: float | None, floor: float | None, key: str)
             and explained_share(err_before, left, floor) >= MIN_EXPLAINED)
 
 
+def under_gate(reduction: float) -> str:
+    """A drop under :data:`MIN_REDUCTION` as a percentage: whole, or to one decimal where a whole one would
+    reach the gate (9.8 %, not "only 10 %")."""
+    return f"{reduction:.1%}" if round(reduction, 2) >= MIN_REDUCTION else f"{reduction:.0%}"
+
+
 def fails_by(reduction: float, t_stat: float) -> str:
     """Why a drop (share of the error, paired t) earns no name, in words: too small, or not significant (a
     drop that passes both fails on its share of the excess over the noise floor)."""
     if reduction < MIN_REDUCTION:
-        return f"it lowers the error by only {reduction:.1%}, t = {t_stat:.1f}"  # 9.8 %, not "only 10 %"
+        return f"it lowers the error by only {under_gate(reduction)}, t = {t_stat:.1f}"
     if t_stat < MIN_T:
         return f"its drop of {reduction:.0%} is not significant: t = {t_stat:.1f}"
     return f"its drop of {reduction:.0%} (t = {t_stat:.1f}) is a small share of the excess over the noise floor"
@@ -209,7 +215,7 @@ def _verdict(result: DiagnosisResult, key: str) -> Verdict:
         best = next((e for e in result.ranking if e.identifiable), None)
         what = ("what they leave" if steps else "the error") + (
             "" if steps or best is None else f" (the best listed effect, {best.effect}, lowers it by only "
-            f"{best.reduction:.0%})")
+            f"{under_gate(best.reduction)})")
         on_top = [d for d in sw.dropped if d.given == "on_top"]
         if on_top and not steps:  # the form was found on what they left: its drop is against that
             names = " and ".join(d.effect for d in on_top)

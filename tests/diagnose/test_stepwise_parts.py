@@ -590,7 +590,7 @@ def test_an_effect_chosen_given_a_stand_in_is_measured_again_once_it_is_out(forc
     if not named:
         assert sel.dropped[-1]["effect"] == "gradient_force" and sel.final.error("1.0") == 1.0
         assert said[-1].startswith("backward: gradient_force dropped once the others are in "
-                                   "(it lowers the error by only 5.0%")
+                                   "(it lowers the error by only 5%")
         return
     force, = sel.steps
     assert force.given == [] and force.entry["reduction"] == pytest.approx(0.35) and force.before.error("1.0") == 1.0
@@ -654,4 +654,4 @@ def test_an_effect_chosen_first_is_measured_again_given_those_chosen_on_top_of_t
     assert sel.chosen == [] and [d["effect"] for d in gone] == ["heading_lag"]
     assert gone[0]["reduction"] == pytest.approx(1.0 - 0.3 / 0.31)
     assert later.final.error("1.0") == pytest.approx(0.31) and later.final.model.effects == {"actuation_lag", "thrust"}
-    assert said[-1].startswith("backward: heading_lag dropped once the others are in (it lowers the error by only 3.2%")
+    assert said[-1].startswith("backward: heading_lag dropped once the others are in (it lowers the error by only 3%")

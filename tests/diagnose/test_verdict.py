@@ -185,8 +185,8 @@ def test_two_effects_named_in_order_with_the_joint_drop_and_a_dropped_one():
         "wall_drag explains part of the error: refitted with it, the held-out error at 1.0 s falls from 1.00 to "
         "0.50 mm given background_flow (50%; t = 4.0; 83% of the excess over the noise floor, 0.40 mm). Fitted: k = "
         "2.00 ± 0.10 mm/s. Together (background_flow + wall_drag) they lower the held-out error at 1.0 s from 2.00 "
-        "to 0.50 mm (75%). gradient_force was dropped once the others were in (it lowers the error by only 3.0%, "
-        "t = 0.7). quadratic_drag was dropped once the drift between the logs was allowed for (its drop of 43% "
+        "to 0.50 mm (75%). gradient_force was dropped once the others were in (it lowers the error by only 3%, t "
+        "= 0.7). quadratic_drag was dropped once the drift between the logs was allowed for (its drop of 43% "
         "is not significant: t = 1.6). What remains is at the noise floor. Next: --add background_flow --add "
         "wall_drag --save-model MODEL.npz saves the model with them, which the Kalman filter and the MPC take as "
         "their model (components.estimator.params.model=MODEL.npz).")
@@ -387,7 +387,7 @@ def test_an_effect_chosen_first_and_dropped_on_top_of_the_form_is_said_so():
     assert v["status"] == "discovered" and v["effects"] == ["actuation_lag"]
     assert v["explanation"].startswith(
         "heading_lag, chosen first, was dropped once the discovered form and the effects named on top of it were in "
-        "(heading_lag: it lowers the error by only -0.0%, t = -0.9). A form outside the library explains what "
+        "(heading_lag: it lowers the error by only -0%, t = -0.9). A form outside the library explains what "
         "heading_lag left: a sparse combination of force terms lowers it by a further 40% (from 0.83 to 0.50 mm")
 
 
@@ -579,6 +579,8 @@ def test_a_result_without_the_optional_parts_still_reads():
     r = result(1.0, 0.2, ranking=[cand("wall_drag", 0.05, 1.0)], discovered=found(0.5))
     del r["ranking"][0]["identifiable"]
     assert "(the best listed effect, wall_drag, lowers it by only 5%)" in verdict(r, K)["explanation"]
+    r["ranking"][0]["reduction"] = 0.098  # a whole percentage would read "only 10 %", the gate itself
+    assert "(the best listed effect, wall_drag, lowers it by only 9.8%)" in verdict(r, K)["explanation"]
     r = result(1.0, 0.4, ranking=[cand("wall_drag", 0.3, 4.0, params={"wall_drag.k": {}}, conditioning={})])
     del r["ranking"][0]["identifiable"]
     assert fit_notes(r) == []  # no trade-offs listed; not "not identifiable"
