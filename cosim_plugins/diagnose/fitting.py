@@ -77,9 +77,12 @@ class Fitter:
         # the fits with the most starts first, so the processes end together (a step-out's sixteen starts,
         # begun last, ran on alone); the results in the given order
         order = sorted(range(len(effects)), key=lambda i: -self._starts(effects[i]))
-        done = fork_map(lambda k: self.with_effects(before, [effects[order[k]]] if effects[order[k]] else [],
-                                                    quick=quick),
-                        len(effects), jobs, "quick fits" if quick else "candidate fits")
+
+        def fit(k: int) -> Fit:
+            effect = effects[order[k]]
+            return self.with_effects(before, [] if effect is None else [effect], quick=quick)
+
+        done = fork_map(fit, len(effects), jobs, "quick fits" if quick else "candidate fits")
         return [done[order.index(i)] for i in range(len(effects))]
 
     def _starts(self, effect) -> int:
