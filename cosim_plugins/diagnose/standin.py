@@ -194,7 +194,7 @@ def _form_on(final, gone: list, forms: list, discover_on, key: str, say) -> tupl
     ``gone`` (its Fit in ``forms``) refitted there when that errs less (:func:`drop_stand_ins`)."""
     again = discover_on(final)
     for dropped, with_form in zip(gone, forms):
-        trial = discover_on(final, form=_as_form(with_form.model.effects[-1], with_form.model.params()))
+        trial = discover_on(final, form=form_of(with_form))
         if trial[2] is not None and (again[2] is None or trial[2].error(key) < again[2].error(key)):
             say(f"stand-in: the form found without {dropped.effect} ({', '.join(trial[0].terms or ())}) errs "
                 f"less on what is left ({trial[2].error(key):.3f} mm) than the form found there: it is kept")
@@ -203,21 +203,29 @@ def _form_on(final, gone: list, forms: list, discover_on, key: str, say) -> tupl
 
 
 def beside_form(fitter, selection, by_name: dict, discover_on, bare: tuple, floor: float | None, key: str,
-                say) -> tuple | None:
-    """(a :class:`~.stepwise.Step`, the final model with it (a Fit), the discovery beside it) for an effect the
-    search took tentatively and dropped (``selection.tentative``, at most :data:`~.stepwise.LOOKAHEADS`, those
-    taken on the final model) that earns its place once a form outside the library is discovered beside it (see
-    the module doc), or None.
+                say) -> tuple[tuple | None, tuple]:
+    """(named, discovery): ``named`` is (a :class:`~.stepwise.Step`, the final model with it (a Fit), the
+    discovery beside it) for an effect the search took tentatively and dropped (``selection.tentative``, at most
+    :data:`~.stepwise.LOOKAHEADS`, those taken on the final model) that earns its place once a form outside the
+    library is discovered beside it (see the module doc), or None; ``discovery`` is ``bare``, or a better form
+    for the final model alone (below).
 
     For each, discovery runs on what the final model plus it leaves (``discover_on(fit) -> (Discovered, effect
     file source, Fit or None)``, quietly); it is named when the two pass the verdict's gates against the form
     found without it (``bare``: that discovery's (Discovered, source, Fit or None); the final model when it
     found nothing that passes) and it passes them given the form, refitted without it. Its step's drop is that
     last one (``given`` ends with :data:`~.result.DISCOVERED`). The one whose model with the form errs least
-    wins."""
+    wins.
+
+    An effect that is not named may still have shown the form the bare discovery missed: beside a step-out, the
+    regression chose a shear along both axes, which refitted without the step-out left 0.42 mm, where the form
+    found on the bare model (the shear along one axis) left 1.42 mm. That form is refitted on the final model,
+    from the parameters it had there (``discover_on(fit, form_fit)``: the form of ``form_fit``, its last effect,
+    refitted on ``fit`` from ``form_fit``'s parameters, its drop measured against ``fit``), and
+    becomes the discovery when it passes the verdict's gates against the form found there."""
     rival = bare[2] if bare[2] is not None and form_passes(bare[0]) else selection.final
     others = [by_name[n] for n in selection.chosen]
-    best = None
+    best, found_bare = None, bare
     for step in [st for st in selection.tentative if st.before is selection.final][:LOOKAHEADS]:
         name = step.effects[0]
         say(f"discover: again given {name}, taken tentatively and dropped: the form beside it may be what it "
@@ -237,7 +245,29 @@ def beside_form(fitter, selection, by_name: dict, discover_on, bare: tuple, floo
         if ok and (best is None or with_form.error(key) < best[2][2].error(key)):
             best = (replace(step, entry=given, fit=with_form, before=without, alone=step.alone or step.entry,
                             given=[*selection.chosen, DISCOVERED]), step.fit, again)
-    return best
+        elif not ok and without.error(key) < _fit_of(found_bare, rival).error(key):
+            trial, current = discover_on(selection.final, without), _fit_of(found_bare, rival)
+            better = (trial[2] is not None and form_passes(trial[0]) and passes(
+                fitter.entry(trial[2].model.effects[-1], trial[2], True, current), current.error(key), floor, key))
+            say(f"  the form found beside {name}, refitted without it from there: "
+                + (f"{trial[2].error(key):.3f} mm against {current.error(key):.3f} mm with the form found on the "
+                   "model alone" if trial[2] is not None else "no form that lowers the error")
+                + (": it is the one discovered" if better else ""))
+            if better:
+                found_bare = trial
+    return best, found_bare
+
+
+def _fit_of(discovery: tuple, fallback):
+    """A discovery's model with its form (its Fit) when the form passes, else ``fallback`` (the model without a
+    form)."""
+    return discovery[2] if discovery[2] is not None and form_passes(discovery[0]) else fallback
+
+
+def form_of(with_form) -> tuple:
+    """(Terms, scales, coefficients): the discovered form of the Fit ``with_form`` (its last effect), at its
+    coefficients there: what ``discover_on(fit, form=...)`` refits on another model."""
+    return _as_form(with_form.model.effects[-1], with_form.model.params())
 
 
 def holds_a_flow(found, with_form) -> bool:
