@@ -240,15 +240,16 @@ def library_effect(terms, scales, name: str = "discovered", coefs=None) -> Effec
     params = tuple(EffectParam(t.name, float(c), unit=_coef_unit(t), scale=float(s))
                    for t, c, s in zip(terms, coefs, scales))
     flows = [t for t in terms if t.flow]
+    names, flow_names = [t.name for t in terms], [t.name for t in flows]  # built once: the force runs every step
 
     def force(p, v, u, prm):
-        return term_force(terms, [prm[t.name] for t in terms], p, v, u, prm)
+        return term_force(terms, [prm[n] for n in names], p, v, u, prm)
 
     def water_at(p, prm):
-        return term_water(flows, [prm[t.name] for t in flows], p)
+        return term_water(flows, [prm[n] for n in flow_names], p)
 
     return Effect(name=name, params=params, force=force, doc="a sparse combination of candidate force terms",
-                  terms=tuple(t.name for t in terms), water_at=water_at if flows else None)
+                  terms=tuple(names), water_at=water_at if flows else None)
 
 
 def _coef_unit(t: Term) -> str:

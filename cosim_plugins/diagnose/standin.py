@@ -225,7 +225,7 @@ def beside_form(fitter, selection, by_name: dict, discover_on, bare: tuple, floo
     becomes the discovery when it passes the verdict's gates against the form found there."""
     rival = bare[2] if bare[2] is not None and form_passes(bare[0]) else selection.final
     others = [by_name[n] for n in selection.chosen]
-    best, found_bare = None, bare
+    best, unnamed = None, []
     for step in [st for st in selection.tentative if st.before is selection.final][:LOOKAHEADS]:
         name = step.effects[0]
         say(f"discover: again given {name}, taken tentatively and dropped: the form beside it may be what it "
@@ -245,17 +245,31 @@ def beside_form(fitter, selection, by_name: dict, discover_on, bare: tuple, floo
         if ok and (best is None or with_form.error(key) < best[2][2].error(key)):
             best = (replace(step, entry=given, fit=with_form, before=without, alone=step.alone or step.entry,
                             given=[*selection.chosen, DISCOVERED]), step.fit, again)
-        elif not ok and without.error(key) < _fit_of(found_bare, rival).error(key):
-            trial, current = discover_on(selection.final, without), _fit_of(found_bare, rival)
-            better = (trial[2] is not None and form_passes(trial[0]) and passes(
-                fitter.entry(trial[2].model.effects[-1], trial[2], True, current), current.error(key), floor, key))
-            say(f"  the form found beside {name}, refitted without it from there: "
-                + (f"{trial[2].error(key):.3f} mm against {current.error(key):.3f} mm with the form found on the "
-                   "model alone" if trial[2] is not None else "no form that lowers the error")
-                + (": it is the one discovered" if better else ""))
-            if better:
-                found_bare = trial
-    return best, found_bare
+        elif not ok:
+            unnamed.append((name, without))
+    return best, bare if best is not None else _better_form(fitter, selection.final, unnamed, bare, rival, floor,
+                                                           key, discover_on, say)
+
+
+def _better_form(fitter, final, unnamed: list, bare: tuple, rival, floor: float | None, key: str, discover_on,
+                 say) -> tuple:
+    """:func:`beside_form`'s discovery when no effect is named: ``bare``, or the form found beside an effect of
+    ``unnamed`` ([(its name, the model with the form, refitted without it)], in the search's order) refitted on
+    ``final`` from there, when that passes the verdict's gates against the form found so far."""
+    for name, without in unnamed:
+        current = _fit_of(bare, rival)
+        if without.error(key) >= current.error(key):
+            continue
+        trial = discover_on(final, without)
+        better = (trial[2] is not None and form_passes(trial[0]) and passes(
+            fitter.entry(trial[2].model.effects[-1], trial[2], True, current), current.error(key), floor, key))
+        say(f"  the form found beside {name}, refitted without it from there: "
+            + (f"{trial[2].error(key):.3f} mm against {current.error(key):.3f} mm with the form found so far"
+               if trial[2] is not None else "no form that lowers the error")
+            + (": it is the one discovered" if better else ""))
+        if better:
+            bare = trial
+    return bare
 
 
 def _fit_of(discovery: tuple, fallback):
