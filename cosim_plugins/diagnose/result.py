@@ -74,12 +74,17 @@ class Reference:
 class Noise:
     """The camera noise and the noise floor: ``sigma_mm`` {"x", "y", "z": sigma [mm]} or None (too few
     consecutive frames), ``floor_mm`` {horizon: the error a perfect model would show [mm] or None},
-    ``tau_s`` the velocity time constant the floor assumes [s], ``tau_from`` where it came from (words)."""
+    ``tau_s`` the velocity time constant the floor assumes [s], ``tau_from`` where it came from (words);
+    ``reached_by`` the candidate whose refit went below the floor estimated from the noise, at the reference
+    horizon, and ``estimated_mm`` that estimate {horizon: mm or None}, when the floor was lowered to that refit's
+    errors (:func:`.pipeline.floor_reached`), else None."""
 
     sigma_mm: dict | None
     floor_mm: Horizons
     tau_s: float
     tau_from: str
+    reached_by: str | None = None
+    estimated_mm: Horizons | None = None
 
 
 @dataclass

@@ -412,6 +412,13 @@ def _added_text(result: DiagnosisResult, key: str) -> str:
 def fit_notes(result: DiagnosisResult) -> list[str]:
     """Sentences on the quality of the fits: degenerate baseline, trade-offs, unidentifiable candidates."""
     notes = []
+    noise = result.noise
+    if noise.reached_by is not None:
+        key = result.reference_key
+        notes.append(f"the noise floor estimated from the camera noise ({noise.estimated_mm[key]:.3f} mm at "
+                     f"{result.reference_horizon_s:g} s) is above the error {noise.reached_by}'s refit reaches "
+                     f"({noise.floor_mm[key]:.3f} mm): no model goes below the floor, so it is taken as that refit's "
+                     "errors")
     cond = result.baseline.conditioning or {}
     if "Cd1" in cond.get("at_bound", ()):
         notes.append("the baseline fit is degenerate: its linear drag Cd1 sits at its bound 0, so it predicts that "

@@ -536,6 +536,25 @@ def test_fit_notes_name_each_problem():
     assert fit_notes(r)[0].startswith("wall_drag.k trades off with Cd1 (correlation +0.80)")
 
 
+def test_a_floor_lowered_to_a_refit_is_said_and_the_search_runs_past_it():
+    """Seed 120's case 35 (an actuation lag of 0.23 s): the baseline erred 0.479 mm at 1 s against a floor
+    estimated at 0.395 mm, "at the floor", while the lag's refit erred 0.368 mm (23 %, t = 11.9). The floor is
+    lowered to the errors of the refit that errs least below it, horizon by horizon, and said in a note."""
+    from cosim_plugins.diagnose.pipeline import floor_reached
+
+    estimated = {"0.1": 0.30, K: 0.395}
+    fits = [("sensor_latency", {"0.1": 0.29, K: 0.40}), ("actuation_lag", {"0.1": 0.31, K: 0.368})]
+    floor, by = floor_reached(estimated, fits, K)
+    assert by == "actuation_lag" and floor == {"0.1": 0.30, K: 0.368}  # never raised at any horizon
+    assert floor_reached(estimated, fits[:1], K) == (estimated, None)  # the latency does not go below it
+    assert floor_reached({"0.1": None, K: None}, fits, K) == ({"0.1": None, K: None}, None)
+    r = result(0.479, floor[K], horizons_s={K: 1.0}, reference_horizon_s=1.0)
+    r["noise"].update(reached_by=by, estimated_mm=estimated)
+    assert fit_notes(r) == ["the noise floor estimated from the camera noise (0.395 mm at 1 s) is above the error "
+                            "actuation_lag's refit reaches (0.368 mm): no model goes below the floor, so it is "
+                            "taken as that refit's errors"]
+
+
 # --- details the cases above leave open -----------------------------------------------------------------------
 
 def test_a_drift_verdict_in_full():
