@@ -317,12 +317,15 @@ def run(log_paths, validate_paths=(), settings: Settings | None = None, progress
 
         result.discovered, source, found_fit = discover_on(final)
         by_name = {e.name: e for e in candidates}
+        def quietly(fit, form_fit=None):  # on fit; or form_fit's form refitted on fit, from form_fit's parameters
+            if form_fit is None:
+                return discover_on(fit, lambda m: None)
+            return _discover_about(fitter.evaluate(_without_last(form_fit.model)), fit, ttr, tte, test_starts, s,
+                                   fitter, lambda m: None, open_train, (), form_of(form_fit))
+
         beside, (result.discovered, source, found_fit) = beside_form(
-            fitter, selection, by_name,
-            lambda fit, form_fit=None: (discover_on(fit, lambda m: None) if form_fit is None else _discover_about(
-                fitter.evaluate(_without_last(form_fit.model)), fit, ttr, tte, test_starts, s, fitter,
-                lambda m: None, open_train, (), form_of(form_fit))),
-            (result.discovered, source, found_fit), floor[s.reference], s.reference, say)
+            fitter, selection, by_name, quietly, (result.discovered, source, found_fit), floor[s.reference],
+            s.reference, say)
         if beside is not None:  # an effect dropped as tentative earns its place beside the form found with it
             step, final, (result.discovered, source, found_fit) = beside
             selection.steps.append(step)

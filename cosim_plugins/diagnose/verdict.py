@@ -410,7 +410,8 @@ def _added_text(result: DiagnosisResult, key: str) -> str:
 
 
 def fit_notes(result: DiagnosisResult) -> list[str]:
-    """Sentences on the quality of the fits: degenerate baseline, trade-offs, unidentifiable candidates."""
+    """Sentences on the quality of the fits: a noise floor lowered to a refit, degenerate baseline, trade-offs,
+    unidentifiable candidates."""
     notes = []
     noise = result.noise
     if noise.reached_by is not None:
