@@ -306,7 +306,7 @@ ROWS = (
          "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
          "blind_s76", "blind_s78", "blind_s81", "blind_s83", "blind_s86", "blind_outside_s93", "blind_none_s95",
          "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112", "blind_s113", "blind_s115",
-         "blind_s116", "blind_s118", "blind_s120"),
+         "blind_s116", "blind_s118", "blind_s120", "blind_s123"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
@@ -465,7 +465,10 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
     ("blind_s120", "seed 120 (fresh, multi beside the single-effect groups, d81d55b: a large drop asked on every "
                    "fold from t = 1)"),
     ("blind_lookalike_s121", "seed 121 (fresh, look-alikes only, d81d55b: a large drop asked on every fold from "
-                             "t = 1)"))
+                             "t = 1)"),
+    ("blind_s123", "seed 123 (fresh, multi beside the single-effect groups, cf23b9e: the floor lowered to a passing "
+                   "refit, a better form from beside a tentative effect)"),
+    ("blind_lookalike_s124", "seed 124 (fresh, look-alikes only, cf23b9e: the same diagnosis)"))
 
 
 def several_effects_table() -> str:
