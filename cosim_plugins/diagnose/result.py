@@ -77,14 +77,14 @@ class Noise:
     ``tau_s`` the velocity time constant the floor assumes [s], ``tau_from`` where it came from (words);
     ``reached_by`` the candidate whose refit went below the floor estimated from the noise, at the reference
     horizon, and ``estimated_mm`` that estimate {horizon: mm or None}, when the floor was lowered to that refit's
-    errors (:func:`.pipeline.floor_reached`), else None."""
+    errors (:func:`.pipeline.floor_reached`), else None (then left out of diagnosis.json)."""
 
     sigma_mm: dict | None
     floor_mm: Horizons
     tau_s: float
     tau_from: str
-    reached_by: str | None = None
-    estimated_mm: Horizons | None = None
+    reached_by: str | None = _optional()
+    estimated_mm: Horizons | None = _optional()
 
 
 @dataclass
