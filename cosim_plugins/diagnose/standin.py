@@ -223,7 +223,7 @@ def beside_form(fitter, selection, by_name: dict, discover_on, bare: tuple, floo
     from the parameters it had there (``discover_on(fit, form_fit)``: the form of ``form_fit``, its last effect,
     refitted on ``fit`` from ``form_fit``'s parameters, its drop measured against ``fit``), and
     becomes the discovery when it passes the verdict's gates against the form found there."""
-    rival = bare[2] if bare[2] is not None and form_passes(bare[0]) else selection.final
+    rival = _fit_of(bare, selection.final)
     others = [by_name[n] for n in selection.chosen]
     best, unnamed = None, []
     for step in [st for st in selection.tentative if st.before is selection.final][:LOOKAHEADS]:
@@ -247,17 +247,17 @@ def beside_form(fitter, selection, by_name: dict, discover_on, bare: tuple, floo
                             given=[*selection.chosen, DISCOVERED]), step.fit, again)
         elif not ok:
             unnamed.append((name, without))
-    return best, bare if best is not None else _better_form(fitter, selection.final, unnamed, bare, rival, floor,
-                                                           key, discover_on, say)
+    return best, bare if best is not None else _better_form(fitter, selection.final, unnamed, bare, floor, key,
+                                                           discover_on, say)
 
 
-def _better_form(fitter, final, unnamed: list, bare: tuple, rival, floor: float | None, key: str, discover_on,
+def _better_form(fitter, final, unnamed: list, bare: tuple, floor: float | None, key: str, discover_on,
                  say) -> tuple:
     """:func:`beside_form`'s discovery when no effect is named: ``bare``, or the form found beside an effect of
     ``unnamed`` ([(its name, the model with the form, refitted without it)], in the search's order) refitted on
     ``final`` from there, when that passes the verdict's gates against the form found so far."""
     for name, without in unnamed:
-        current = _fit_of(bare, rival)
+        current = _fit_of(bare, final)
         if without.error(key) >= current.error(key):
             continue
         trial = discover_on(final, without)
