@@ -195,3 +195,33 @@ def test_the_gradient_force_cross_terms_follow_the_pairs_gradients(coil_fields):
     assert misfit_tied < 0.01 and misfit_tied < misfit_free + 1e-3, (misfit_tied, misfit_free)
     assert np.allclose(x[:3], b, rtol=0, atol=0.01 * np.abs(b).max())
     assert np.allclose(x[3:], [b[0] + b[1], b[0] + b[2], b[1] + b[2]], rtol=0, atol=0.02 * np.abs(b).max()), x
+
+
+def test_the_gradient_force_bends_with_the_field_strength_far_from_the_centre(coil_fields):
+    """Pairs far from the Helmholtz spacing (|B| changes by 3-5 % at 40 mm): over +-40 mm the coils' turn-averaged
+    m grad|B| (per unit m B0, so curv = 1 / (m B0) is 1) is fitted better by the law with the field's strength
+    in it than by its near-centre line, and the fit reads curv near 1; at curv = 0 the law is the line."""
+    from scipy.optimize import least_squares
+
+    rng = np.random.default_rng(11)
+    offsets = (0.05, 0.25, 0.07)
+    p_mm = rng.uniform(-40.0, 40.0, (150, 3))
+    axes = rng.normal(size=(150, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    per_unit = _pair_centre_fields(coil_fields, offsets)
+    y = np.concatenate([_turn_averaged_force(coil_fields, p * 1e-3, a, offsets, per_unit, phases=12) * 1e-3
+                        for p, a in zip(p_mm, axes)])
+
+    def law(x):
+        return GRADIENT_FORCE.force(p_mm, None, 8.0 * axes, dict(zip(("b_x", "b_y", "b_z", "curv"), x))).ravel()
+
+    line = least_squares(lambda x: law([*x, 0.0]) - y, np.zeros(3), x_scale=1e-3)
+    bent = least_squares(lambda x: law(x) - y, [*line.x, 0.0], bounds=([-1.0] * 3 + [0.0], [1.0] * 3 + [1e3]),
+                         x_scale=[1e-3, 1e-3, 1e-3, 1.0])
+    misfit_line, misfit_bent = (np.linalg.norm(f.fun) / np.linalg.norm(y) for f in (line, bent))
+    assert misfit_bent < 0.8 * misfit_line, (misfit_line, misfit_bent)
+    assert 0.5 < bent.x[3] < 1.5, bent.x
+    near = {"b_x": 0.02, "b_y": -0.01, "b_z": 0.03}
+    curved_at_zero = GRADIENT_FORCE.force(p_mm, None, 8.0 * axes, {**near, "curv": 0.0})
+    tiny = GRADIENT_FORCE.force(p_mm, None, 8.0 * axes, {**near, "curv": 1e-9})
+    assert np.allclose(curved_at_zero, tiny, rtol=0, atol=1e-6 * np.abs(tiny).max())
