@@ -144,7 +144,7 @@ STEP_OUT = Effect(
 
 _PAIR = ("b_x", "b_y", "b_z")
 #: Phases of the field over half a turn at which m grad|B| is averaged when the field's curvature counts
-#: (F(t + pi) = F(t)); 8 are within 2e-4 of 64 where |B| changes by 160 % at 40 mm from the centre.
+#: (F(t + pi) = F(t)); 8 are within 2e-6 of 64 where |B| changes by 64 % at 40 mm from the centre, 0.2 % at 160 %.
 GRADIENT_PHASES = 8
 
 
