@@ -284,7 +284,7 @@ ROWS = (
         "beforehand; each pair's minimum over 5 passes)", "`pair_ms` median <= 2 ms", ("camera",), _camera),
     Row("diagnose.py", "`cosim diagnose` on five 3,000-row logs",
         "<= 20 s (round 3); <= 60 s with the stepwise search (issue 33)",
-        ("diagnose_jobs2_578846c", "diagnose_jobs2_aaa7302", "diagnose_jobs2_21cc104", "diagnose_jobs2_79af89a",
+        ("diagnose_jobs2_f3f23f8", "diagnose_jobs2_578846c", "diagnose_jobs2_aaa7302", "diagnose_jobs2_21cc104", "diagnose_jobs2_79af89a",
          "diagnose_jobs2_0940a22", "diagnose_jobs2_2bb3b17",
          "diagnose_jobs2_775c2b1", "diagnose_jobs2_222c636", "diagnose_jobs2_fa604e4", "diagnose_jobs2_010912a",
          "diagnose_jobs2", "diagnose_jobs1"), _diagnose),
@@ -306,7 +306,7 @@ ROWS = (
          "blind_s58", "blind_s60", "blind_s62", "blind_s64", "blind_s66", "blind_s68", "blind_s72", "blind_s74",
          "blind_s76", "blind_s78", "blind_s81", "blind_s83", "blind_s86", "blind_outside_s93", "blind_none_s95",
          "blind_library_s96", "blind_library_s98", "blind_s107", "blind_s112", "blind_s113", "blind_s115",
-         "blind_s116", "blind_s118", "blind_s120", "blind_s123"),
+         "blind_s116", "blind_s118", "blind_s120", "blind_s123", "blind_s125"),
         _blind),
     Row("sweep_jobs.py", "the Fig. 6 sweep's wall time with `--jobs 1` and `--jobs 2`, the rows and logs compared",
         "ratio <= 0.6", ("sweep_jobs",), _sweep_jobs),
@@ -468,7 +468,10 @@ SEVERAL_SEEDS = (("blind_groups_s8", "seed 8"), ("blind_lookalike_s10", "seed 10
                              "t = 1)"),
     ("blind_s123", "seed 123 (fresh, multi beside the single-effect groups, cf23b9e: the floor lowered to a passing "
                    "refit, a better form from beside a tentative effect)"),
-    ("blind_lookalike_s124", "seed 124 (fresh, look-alikes only, cf23b9e: the same diagnosis)"))
+    ("blind_lookalike_s124", "seed 124 (fresh, look-alikes only, cf23b9e: the same diagnosis)"),
+    ("blind_s125", "seed 125 (fresh, multi beside the single-effect groups, f3f23f8: the gradient force bending "
+                   "with the field's strength, a step left after a backward drop measured again)"),
+    ("blind_lookalike_s126", "seed 126 (fresh, look-alikes only, f3f23f8: the same diagnosis)"))
 
 
 def several_effects_table() -> str:
