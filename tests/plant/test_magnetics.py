@@ -161,18 +161,24 @@ def _turn_averaged_force(coil_fields, p, axis, offsets_m, per_unit, phases=24):
     return force / phases
 
 
+def _coil_samples(coil_fields, offsets_m, half_mm, n, seed, phases=24):
+    """(p (n, 3) [mm] uniform within +-half_mm, unit rotation axes (n, 3), the coils' turn-averaged m grad|B| per
+    unit m B0 at them, flattened (3 n,) [1/mm]): pair k's coils offsets_m[k] [m] from the centre."""
+    rng = np.random.default_rng(seed)
+    p_mm = rng.uniform(-half_mm, half_mm, (n, 3))
+    axes = rng.normal(size=(n, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    per_unit = _pair_centre_fields(coil_fields, offsets_m)
+    y = np.concatenate([_turn_averaged_force(coil_fields, p * 1e-3, a, offsets_m, per_unit, phases) * 1e-3
+                        for p, a in zip(p_mm, axes)])
+    return p_mm, axes, y
+
+
 def test_the_gradient_force_cross_terms_follow_the_pairs_gradients(coil_fields):
     """Three pairs at different spacings (so three different gradients): within 10 mm of the centre the coils'
     turn-averaged m grad|B| is the library's three-coefficient form (cross terms u_j u_k (b_j + b_k)), which fits
     as closely as one with the cross coefficients free, and the free fit's cross coefficients come out b_j + b_k."""
-    rng = np.random.default_rng(7)
-    offsets = (0.12, 0.15, 0.18)
-    p_mm = rng.uniform(-10.0, 10.0, (300, 3))
-    axes = rng.normal(size=(300, 3))
-    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-    per_unit = _pair_centre_fields(coil_fields, offsets)
-    y = np.concatenate([_turn_averaged_force(coil_fields, p * 1e-3, a, offsets, per_unit) * 1e-3
-                        for p, a in zip(p_mm, axes)])
+    p_mm, axes, y = _coil_samples(coil_fields, (0.12, 0.15, 0.18), 10.0, 300, seed=7)
     unit_b = [{n: float(n == m) for n in ("b_x", "b_y", "b_z")} for m in ("b_x", "b_y", "b_z")]
     tied = np.stack([GRADIENT_FORCE.force(p_mm, None, 8.0 * axes, prm).ravel() for prm in unit_b], 1)
     b, *_ = np.linalg.lstsq(tied, y, rcond=None)
@@ -203,14 +209,7 @@ def test_the_gradient_force_bends_with_the_field_strength_far_from_the_centre(co
     in it than by its near-centre line, and the fit reads curv near 1; at curv = 0 the law is the line."""
     from scipy.optimize import least_squares
 
-    rng = np.random.default_rng(11)
-    offsets = (0.05, 0.25, 0.07)
-    p_mm = rng.uniform(-40.0, 40.0, (150, 3))
-    axes = rng.normal(size=(150, 3))
-    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-    per_unit = _pair_centre_fields(coil_fields, offsets)
-    y = np.concatenate([_turn_averaged_force(coil_fields, p * 1e-3, a, offsets, per_unit, phases=12) * 1e-3
-                        for p, a in zip(p_mm, axes)])
+    p_mm, axes, y = _coil_samples(coil_fields, (0.05, 0.25, 0.07), 40.0, 150, seed=11, phases=12)
 
     def law(x):
         return GRADIENT_FORCE.force(p_mm, None, 8.0 * axes, dict(zip(("b_x", "b_y", "b_z", "curv"), x))).ravel()
